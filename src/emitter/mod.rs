@@ -1,0 +1,159 @@
+//! Light sources: Mitsuba 3's `area`, `point`, `constant` and `directional`.
+//!
+//! `sample_direction` returns, for a reference point, a direction toward the light, the
+//! distance to travel, the solid-angle pdf (1 for Dirac lights) and `Le / pdf`.
+
+use std::f32::consts::PI;
+
+use glam::{Vec2, Vec3, Vec3A};
+
+use crate::geometry::shape::{square_to_uniform_sphere, Geometry};
+
+#[derive(Clone, Debug)]
+pub enum Emitter {
+    /// Emits `radiance` from the front side (where the shading normal points) of `shape`.
+    Area { shape: u32, radiance: Vec3 },
+    /// `intensity / r²` from `position`.
+    Point { position: Vec3A, intensity: Vec3 },
+    /// Uniform environment `radiance` from every direction.
+    Constant { radiance: Vec3 },
+    /// Parallel light travelling along `direction`, `irradiance` on a surface facing it.
+    Directional { direction: Vec3A, irradiance: Vec3 },
+}
+
+/// A sampled direction toward an emitter.
+#[derive(Clone, Copy, Debug)]
+pub struct EmitterSample {
+    /// Unit direction from the reference point toward the light.
+    pub d: Vec3A,
+    /// Point on the light (or far along `d` for infinite lights).
+    pub p: Vec3A,
+    /// Solid-angle pdf (selection pmf not included); 1 for Dirac lights.
+    pub pdf: f32,
+    /// `Le · G / pdf` — for Dirac lights the incident radiance scale.
+    pub weight: Vec3,
+    pub delta: bool,
+}
+
+/// The scene's bounding sphere, for infinite lights.
+#[derive(Clone, Copy, Debug)]
+pub struct BSphere {
+    pub center: Vec3A,
+    pub radius: f32,
+}
+
+impl Emitter {
+    pub fn is_delta(&self) -> bool {
+        matches!(self, Emitter::Point { .. } | Emitter::Directional { .. })
+    }
+
+    pub fn sample_direction(
+        &self,
+        p_ref: Vec3A,
+        s: Vec2,
+        shapes: &[Geometry],
+        bsphere: &BSphere,
+    ) -> Option<EmitterSample> {
+        match self {
+            Emitter::Area { shape, radiance } => {
+                let g = &shapes[*shape as usize];
+                let (p, n) = g.sample_position(s);
+                let v = p - p_ref;
+                let dist2 = v.length_squared();
+                let dist = dist2.sqrt();
+                if dist == 0.0 {
+                    return None;
+                }
+                let d = v / dist;
+                let cos = n.dot(d);
+                // One-sided: the light must face the reference point.
+                if cos >= 0.0 {
+                    return None;
+                }
+                // pdf_ω = pdf_A · r² / |cos θ_light|
+                let pdf = dist2 / (g.area() * -cos);
+                if !pdf.is_finite() || pdf <= 0.0 {
+                    return None;
+                }
+                Some(EmitterSample {
+                    d,
+                    p,
+                    pdf,
+                    weight: *radiance / pdf,
+                    delta: false,
+                })
+            }
+            Emitter::Point {
+                position,
+                intensity,
+            } => {
+                let v = *position - p_ref;
+                let dist2 = v.length_squared();
+                if dist2 == 0.0 {
+                    return None;
+                }
+                Some(EmitterSample {
+                    d: v / dist2.sqrt(),
+                    p: *position,
+                    pdf: 1.0,
+                    weight: *intensity / dist2,
+                    delta: true,
+                })
+            }
+            Emitter::Constant { radiance } => {
+                let d = square_to_uniform_sphere(Vec2::new(s.x, s.y));
+                let r = bsphere.radius.max((p_ref - bsphere.center).length());
+                let pdf = 1.0 / (4.0 * PI);
+                Some(EmitterSample {
+                    d,
+                    p: p_ref + d * (2.0 * r),
+                    pdf,
+                    weight: *radiance / pdf,
+                    delta: false,
+                })
+            }
+            Emitter::Directional {
+                direction,
+                irradiance,
+            } => {
+                let r = bsphere.radius.max((p_ref - bsphere.center).length());
+                Some(EmitterSample {
+                    d: -*direction,
+                    p: p_ref - *direction * (2.0 * r),
+                    pdf: 1.0,
+                    weight: *irradiance,
+                    delta: true,
+                })
+            }
+        }
+    }
+
+    /// Solid-angle pdf that `sample_direction` from `p_ref` produces the point `p` with
+    /// (shading) normal `n` on this emitter (area lights), or direction `d` (environment).
+    pub fn pdf_direction(
+        &self,
+        p_ref: Vec3A,
+        p: Vec3A,
+        n: Vec3A,
+        d: Vec3A,
+        shapes: &[Geometry],
+    ) -> f32 {
+        match self {
+            Emitter::Area { shape, .. } => {
+                let cos = n.dot(d);
+                if cos >= 0.0 {
+                    return 0.0;
+                }
+                let dist2 = (p - p_ref).length_squared();
+                let pdf = dist2 / (shapes[*shape as usize].area() * -cos);
+                if pdf.is_finite() {
+                    pdf
+                } else {
+                    0.0
+                }
+            }
+            Emitter::Constant { .. } => 1.0 / (4.0 * PI),
+            Emitter::Point { .. } | Emitter::Directional { .. } => 0.0,
+        }
+    }
+}

@@ -1,0 +1,389 @@
+//! Triangle meshes: PLY (ply-rs) and OBJ (tobj) readers, Mitsuba's `cube`, vertex
+//! normals, ray–triangle intersection and uniform area sampling.
+
+use std::io::BufReader;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+
+use glam::{Mat4, Vec2, Vec3A};
+
+use crate::error::{Loc, Result, SceneError};
+
+/// A triangle mesh in world space.
+#[derive(Clone, Debug)]
+pub struct TriangleMesh {
+    pub positions: Vec<Vec3A>,
+    /// Per-vertex shading normals; `None` with `face_normals`.
+    pub normals: Option<Vec<Vec3A>>,
+    pub triangles: Vec<[u32; 3]>,
+    pub flip_normals: bool,
+    /// Cumulative triangle areas, for sampling a point uniformly by area.
+    area_cdf: Vec<f32>,
+    pub total_area: f32,
+}
+
+/// Mesh data as read from a file, in object space.
+pub struct RawMesh {
+    pub positions: Vec<Vec3A>,
+    pub normals: Option<Vec<Vec3A>>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+fn mesh_error(path: &Path, msg: impl Into<String>) -> SceneError {
+    SceneError::new(Some(Loc::file_only(path)), msg.into())
+}
+
+/// Runs a third-party reader, turning a panic inside it into an error naming the file.
+fn guarded<T>(path: &Path, what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(_) => Err(mesh_error(
+            path,
+            format!("the {what} reader failed on this file: it is malformed or truncated"),
+        )),
+    }
+}
+
+/// Reads a PLY file (ASCII or binary): vertex x, y, z and optional nx, ny, nz; faces from
+/// `vertex_indices` (or `vertex_index`), polygons fan-triangulated.
+pub fn read_ply(path: &Path) -> Result<RawMesh> {
+    use ply_rs::parser::Parser;
+    use ply_rs::ply::{DefaultElement, Property};
+    let file = std::fs::File::open(path)
+        .map_err(|e| mesh_error(path, format!("cannot open PLY file: {e}")))?;
+    let ply = guarded(path, "PLY", || {
+        let mut reader = BufReader::new(file);
+        Parser::<DefaultElement>::new()
+            .read_ply(&mut reader)
+            .map_err(|e| mesh_error(path, format!("cannot parse PLY file: {e}")))
+    })?;
+
+    let scalar = |p: &Property| -> Option<f64> {
+        Some(match p {
+            Property::Char(v) => *v as f64,
+            Property::UChar(v) => *v as f64,
+            Property::Short(v) => *v as f64,
+            Property::UShort(v) => *v as f64,
+            Property::Int(v) => *v as f64,
+            Property::UInt(v) => *v as f64,
+            Property::Float(v) => *v as f64,
+            Property::Double(v) => *v,
+            _ => return None,
+        })
+    };
+    let list = |p: &Property| -> Option<Vec<i64>> {
+        Some(match p {
+            Property::ListChar(v) => v.iter().map(|&x| x as i64).collect(),
+            Property::ListUChar(v) => v.iter().map(|&x| x as i64).collect(),
+            Property::ListShort(v) => v.iter().map(|&x| x as i64).collect(),
+            Property::ListUShort(v) => v.iter().map(|&x| x as i64).collect(),
+            Property::ListInt(v) => v.iter().map(|&x| x as i64).collect(),
+            Property::ListUInt(v) => v.iter().map(|&x| x as i64).collect(),
+            _ => return None,
+        })
+    };
+
+    let vertices = ply
+        .payload
+        .get("vertex")
+        .ok_or_else(|| mesh_error(path, "PLY file has no \"vertex\" element"))?;
+    let mut positions = Vec::with_capacity(vertices.len());
+    let mut normals = Vec::new();
+    let has_normals = vertices
+        .first()
+        .is_some_and(|v| v.contains_key("nx") && v.contains_key("ny") && v.contains_key("nz"));
+    for (i, v) in vertices.iter().enumerate() {
+        let get = |k: &str| v.get(k).and_then(scalar);
+        let (Some(x), Some(y), Some(z)) = (get("x"), get("y"), get("z")) else {
+            return Err(mesh_error(
+                path,
+                format!("PLY vertex {i} lacks numeric x, y, z"),
+            ));
+        };
+        positions.push(Vec3A::new(x as f32, y as f32, z as f32));
+        if has_normals {
+            let (Some(nx), Some(ny), Some(nz)) = (get("nx"), get("ny"), get("nz")) else {
+                return Err(mesh_error(
+                    path,
+                    format!("PLY vertex {i} lacks numeric nx, ny, nz"),
+                ));
+            };
+            normals.push(Vec3A::new(nx as f32, ny as f32, nz as f32));
+        }
+    }
+    let faces = ply
+        .payload
+        .get("face")
+        .ok_or_else(|| mesh_error(path, "PLY file has no \"face\" element"))?;
+    let mut polys = Vec::with_capacity(faces.len());
+    for (i, f) in faces.iter().enumerate() {
+        let idx = f
+            .get("vertex_indices")
+            .or_else(|| f.get("vertex_index"))
+            .and_then(list)
+            .ok_or_else(|| mesh_error(path, format!("PLY face {i} has no vertex_indices list")))?;
+        polys.push(idx);
+    }
+    let triangles = triangulate(path, &polys, positions.len())?;
+    Ok(RawMesh {
+        positions,
+        normals: has_normals.then_some(normals),
+        triangles,
+    })
+}
+
+/// Reads a Wavefront OBJ file (positions, optional normals; faces fan-triangulated).
+pub fn read_obj(path: &Path) -> Result<RawMesh> {
+    if !path.exists() {
+        return Err(mesh_error(path, "cannot open OBJ file: no such file"));
+    }
+    let opts = tobj::LoadOptions {
+        single_index: true,
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let (models, _) = guarded(path, "OBJ", || {
+        tobj::load_obj(path, &opts)
+            .map_err(|e| mesh_error(path, format!("cannot parse OBJ file: {e}")))
+    })?;
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    let mut all_have_normals = true;
+    let mut polys = Vec::new();
+    for m in &models {
+        let mesh = &m.mesh;
+        let base = positions.len() as i64;
+        let nv = mesh.positions.len() / 3;
+        for i in 0..nv {
+            let p = &mesh.positions[3 * i..3 * i + 3];
+            positions.push(Vec3A::new(p[0], p[1], p[2]));
+        }
+        if mesh.normals.len() == mesh.positions.len() {
+            for i in 0..nv {
+                let n = &mesh.normals[3 * i..3 * i + 3];
+                normals.push(Vec3A::new(n[0], n[1], n[2]));
+            }
+        } else {
+            all_have_normals = false;
+        }
+        for tri in mesh.indices.chunks(3) {
+            polys.push(tri.iter().map(|&i| i as i64 + base).collect::<Vec<_>>());
+        }
+    }
+    let triangles = triangulate(path, &polys, positions.len())?;
+    Ok(RawMesh {
+        positions,
+        normals: (all_have_normals && !normals.is_empty()).then_some(normals),
+        triangles,
+    })
+}
+
+/// Checks indices and fan-triangulates polygons.
+fn triangulate(path: &Path, polys: &[Vec<i64>], n_vertices: usize) -> Result<Vec<[u32; 3]>> {
+    let mut tris = Vec::with_capacity(polys.len());
+    for (i, poly) in polys.iter().enumerate() {
+        if poly.len() < 3 {
+            return Err(mesh_error(
+                path,
+                format!("face {i} has {} vertices (at least 3 needed)", poly.len()),
+            ));
+        }
+        for &v in poly {
+            if v < 0 || v as usize >= n_vertices {
+                return Err(mesh_error(
+                    path,
+                    format!(
+                        "face {i} refers to vertex {v}, but the mesh has {n_vertices} vertices"
+                    ),
+                ));
+            }
+        }
+        for k in 1..poly.len() - 1 {
+            tris.push([poly[0] as u32, poly[k] as u32, poly[k + 1] as u32]);
+        }
+    }
+    if tris.is_empty() {
+        return Err(mesh_error(path, "mesh has no faces"));
+    }
+    Ok(tris)
+}
+
+/// Mitsuba 3's `cube`: [-1, 1]³, 6 faces × 2 triangles, 24 vertices with face normals.
+pub fn cube() -> RawMesh {
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    let mut triangles = Vec::new();
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let mut n = Vec3A::ZERO;
+            n[axis] = sign;
+            let u_axis = (axis + 1) % 3;
+            let v_axis = (axis + 2) % 3;
+            let base = positions.len() as u32;
+            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                let mut p = n;
+                p[u_axis] = a;
+                p[v_axis] = b;
+                positions.push(p);
+                normals.push(n);
+            }
+            // Wind so that the geometric normal points outward.
+            if sign > 0.0 {
+                triangles.push([base, base + 1, base + 2]);
+                triangles.push([base, base + 2, base + 3]);
+            } else {
+                triangles.push([base, base + 2, base + 1]);
+                triangles.push([base, base + 3, base + 2]);
+            }
+        }
+    }
+    RawMesh {
+        positions,
+        normals: Some(normals),
+        triangles,
+    }
+}
+
+impl TriangleMesh {
+    /// Builds a world-space mesh. Without file normals and without `face_normals`, smooth
+    /// vertex normals are computed (angle-weighted, as Mitsuba's `recompute_vertex_normals`).
+    pub fn new(
+        raw: RawMesh,
+        to_world: &Mat4,
+        face_normals: bool,
+        flip_normals: bool,
+        path: &Path,
+    ) -> Result<Self> {
+        let positions: Vec<Vec3A> = raw
+            .positions
+            .iter()
+            .map(|&p| to_world.transform_point3a(p))
+            .collect();
+        if positions.iter().any(|p| !p.is_finite()) {
+            return Err(mesh_error(path, "mesh has a non-finite vertex position"));
+        }
+        let normals = if face_normals {
+            None
+        } else {
+            let inv_t = to_world.inverse().transpose();
+            Some(match raw.normals {
+                Some(ns) => ns
+                    .iter()
+                    .map(|&n| inv_t.transform_vector3a(n).normalize_or_zero())
+                    .collect(),
+                None => vertex_normals(&positions, &raw.triangles),
+            })
+        };
+        let mut area_cdf = Vec::with_capacity(raw.triangles.len());
+        let mut total = 0.0f64;
+        for t in &raw.triangles {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            total += 0.5 * (b - a).cross(c - a).length() as f64;
+            area_cdf.push(total as f32);
+        }
+        Ok(TriangleMesh {
+            positions,
+            normals,
+            triangles: raw.triangles,
+            flip_normals,
+            area_cdf,
+            total_area: total as f32,
+        })
+    }
+
+    pub fn vertices(&self, tri: u32) -> [Vec3A; 3] {
+        self.triangles[tri as usize].map(|i| self.positions[i as usize])
+    }
+
+    /// Möller–Trumbore. Returns (t, u, v) with barycentrics u for vertex 1, v for vertex 2.
+    #[inline]
+    pub fn intersect(&self, tri: u32, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(f32, f32, f32)> {
+        let [p0, p1, p2] = self.vertices(tri);
+        let e1 = p1 - p0;
+        let e2 = p2 - p0;
+        let pv = d.cross(e2);
+        let det = e1.dot(pv);
+        if det == 0.0 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let tv = o - p0;
+        let u = tv.dot(pv) * inv;
+        if !(0.0..=1.0).contains(&u) {
+            return None;
+        }
+        let qv = tv.cross(e1);
+        let v = d.dot(qv) * inv;
+        if v < 0.0 || u + v > 1.0 {
+            return None;
+        }
+        let t = e2.dot(qv) * inv;
+        (t > 0.0 && t < tmax).then_some((t, u, v))
+    }
+
+    /// Position, geometric normal and shading normal at barycentrics (u, v).
+    pub fn surface(&self, tri: u32, u: f32, v: f32) -> (Vec3A, Vec3A, Vec3A) {
+        let idx = self.triangles[tri as usize];
+        let [p0, p1, p2] = idx.map(|i| self.positions[i as usize]);
+        let w = 1.0 - u - v;
+        let p = p0 * w + p1 * u + p2 * v;
+        let mut n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+        let mut sh_n = match &self.normals {
+            Some(ns) => {
+                let s = ns[idx[0] as usize] * w + ns[idx[1] as usize] * u + ns[idx[2] as usize] * v;
+                s.try_normalize().unwrap_or(n)
+            }
+            None => n,
+        };
+        if self.flip_normals {
+            n = -n;
+            sh_n = -sh_n;
+        }
+        (p, n, sh_n)
+    }
+
+    /// A point uniformly distributed over the surface; pdf (area) = 1 / total_area.
+    pub fn sample_position(&self, sample: Vec2) -> (Vec3A, Vec3A) {
+        let target = sample.x * self.total_area;
+        let i = self
+            .area_cdf
+            .partition_point(|&c| c < target)
+            .min(self.area_cdf.len() - 1);
+        let lo = if i == 0 { 0.0 } else { self.area_cdf[i - 1] };
+        let width = self.area_cdf[i] - lo;
+        let x = if width > 0.0 {
+            ((target - lo) / width).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        // Uniform barycentrics (square_to_uniform_triangle).
+        let t = (1.0 - x).sqrt();
+        let (u, v) = (1.0 - t, t * sample.y);
+        let (p, _n, sh_n) = self.surface(i as u32, u, v);
+        (p, sh_n)
+    }
+}
+
+/// Angle-weighted vertex normals ("Computing Vertex Normals from Polygonal Facets",
+/// Thürmer & Wüthrich 1998), as Mitsuba 3 computes them for meshes without normals.
+fn vertex_normals(positions: &[Vec3A], triangles: &[[u32; 3]]) -> Vec<Vec3A> {
+    let mut normals = vec![Vec3A::ZERO; positions.len()];
+    for t in triangles {
+        let p = t.map(|i| positions[i as usize]);
+        let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+        if n == Vec3A::ZERO {
+            continue;
+        }
+        for k in 0..3 {
+            let d0 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
+            let d1 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
+            let angle = d0.dot(d1).clamp(-1.0, 1.0).acos();
+            normals[t[k] as usize] += n * angle;
+        }
+    }
+    for n in &mut normals {
+        *n = n.normalize_or_zero();
+    }
+    normals
+}

@@ -1,0 +1,112 @@
+//! Rays, local frames, shapes and the acceleration structure.
+
+pub mod accel;
+pub mod mesh;
+pub mod shape;
+
+use glam::Vec3A;
+
+/// Mitsuba 3's ray epsilon for single precision (`math::RayEpsilon<float>` =
+/// `Epsilon * 1500`, `Epsilon` = 2⁻²⁴): spawned rays are offset by this much, scaled by
+/// the magnitude of the point, along the normal.
+pub const RAY_EPSILON: f32 = 1500.0 / 16_777_216.0;
+/// Shadow rays stop this much (relative) short of their target (`math::ShadowEpsilon`).
+pub const SHADOW_EPSILON: f32 = RAY_EPSILON * 10.0;
+
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    pub o: Vec3A,
+    pub d: Vec3A,
+    pub tmax: f32,
+}
+
+impl Ray {
+    pub fn new(o: Vec3A, d: Vec3A, tmax: f32) -> Self {
+        Ray { o, d, tmax }
+    }
+
+    pub fn at(&self, t: f32) -> Vec3A {
+        self.o + self.d * t
+    }
+}
+
+/// Offsets `p` off a surface with normal `n`, to the side `d` points to (Mitsuba's
+/// `Interaction::offset_p`): magnitude `(1 + max|p_i|) · RayEpsilon`.
+pub fn offset_point(p: Vec3A, n: Vec3A, d: Vec3A) -> Vec3A {
+    let mag = (1.0 + p.abs().max_element()) * RAY_EPSILON;
+    let mag = if n.dot(d) >= 0.0 { mag } else { -mag };
+    p + n * mag
+}
+
+/// An orthonormal frame around `n` (Duff et al. 2017, as Mitsuba's `coordinate_system`).
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub s: Vec3A,
+    pub t: Vec3A,
+    pub n: Vec3A,
+}
+
+impl Frame {
+    pub fn new(n: Vec3A) -> Self {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let s = Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let t = Vec3A::new(b, sign + n.y * n.y * a, -n.y);
+        Frame { s, t, n }
+    }
+
+    pub fn to_local(&self, v: Vec3A) -> Vec3A {
+        Vec3A::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
+    }
+
+    pub fn to_world(&self, v: Vec3A) -> Vec3A {
+        self.s * v.x + self.t * v.y + self.n * v.z
+    }
+}
+
+/// Axis-aligned bounding box.
+#[derive(Clone, Copy, Debug)]
+pub struct Bounds {
+    pub min: Vec3A,
+    pub max: Vec3A,
+}
+
+impl Bounds {
+    pub const EMPTY: Bounds = Bounds {
+        min: Vec3A::splat(f32::INFINITY),
+        max: Vec3A::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn expand(&mut self, p: Vec3A) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    pub fn union(&self, o: &Bounds) -> Bounds {
+        Bounds {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_is_orthonormal() {
+        for n in [Vec3A::Z, -Vec3A::Z, Vec3A::new(0.3, -0.5, 0.8).normalize()] {
+            let f = Frame::new(n);
+            assert!(f.s.dot(f.t).abs() < 1e-6 && f.s.dot(n).abs() < 1e-6);
+            assert!((f.s.cross(f.t) - n).length() < 1e-5);
+            let v = Vec3A::new(0.1, 0.7, -0.2);
+            assert!((f.to_world(f.to_local(v)) - v).length() < 1e-6);
+        }
+    }
+}

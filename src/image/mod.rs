@@ -1,0 +1,111 @@
+//! Image files: linear float32 RGB EXR (row 0 at the top, as Mitsuba writes them) and a
+//! tonemapped sRGB PNG preview. Files are written to a temporary name and renamed, so an
+//! interrupted run never leaves a corrupt image.
+
+pub mod stats;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+
+use crate::integrator::Image;
+
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
+}
+
+fn commit(tmp: &Path, path: &Path) -> Result<()> {
+    std::fs::rename(tmp, path)
+        .with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))
+}
+
+/// Writes a linear RGB float32 EXR.
+pub fn write_exr(path: &Path, img: &Image) -> Result<()> {
+    use exr::prelude::*;
+    if img.pixels.iter().any(|p| p.iter().any(|c| !c.is_finite())) {
+        bail!(
+            "refusing to write {}: the image contains NaN or Inf",
+            path.display()
+        );
+    }
+    let tmp = temp_path(path);
+    let w = img.width;
+    let r = write_rgb_file(&tmp, img.width, img.height, |x, y| {
+        let p = img.pixels[y * w + x];
+        (p[0], p[1], p[2])
+    });
+    if let Err(e) = r {
+        let _ = std::fs::remove_file(&tmp);
+        bail!("cannot write {}: {e}", path.display());
+    }
+    commit(&tmp, path)
+}
+
+/// Reads the RGB channels of an EXR (any of half/float/uint channels R, G, B).
+pub fn read_exr(path: &Path) -> Result<Image> {
+    use exr::prelude::*;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |res, _| {
+            (
+                res.width(),
+                res.height(),
+                vec![[0f32; 3]; res.width() * res.height()],
+            )
+        },
+        |(w, _h, px): &mut (usize, usize, Vec<[f32; 3]>),
+         pos,
+         (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .with_context(|| format!("cannot read EXR {}", path.display()))?;
+    let (width, height, pixels) = image.layer_data.channel_data.pixels;
+    Ok(crate::integrator::Image {
+        width,
+        height,
+        pixels,
+    })
+}
+
+/// sRGB transfer function of a linear value in [0, 1].
+fn srgb_encode(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Writes an 8-bit sRGB PNG preview (clamped, no exposure change).
+pub fn write_png(path: &Path, img: &Image) -> Result<()> {
+    let tmp = temp_path(path);
+    let write = || -> Result<()> {
+        let file = std::fs::File::create(&tmp)?;
+        let mut enc = png::Encoder::new(
+            std::io::BufWriter::new(file),
+            img.width as u32,
+            img.height as u32,
+        );
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut writer = enc.write_header()?;
+        let data: Vec<u8> = img
+            .pixels
+            .iter()
+            .flat_map(|p| p.map(|c| (srgb_encode(c.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8))
+            .collect();
+        writer.write_image_data(&data)?;
+        writer.finish()?;
+        Ok(())
+    };
+    if let Err(e) = write() {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e.context(format!("cannot write {}", path.display())));
+    }
+    commit(&tmp, path)
+}

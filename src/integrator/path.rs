@@ -1,0 +1,199 @@
+//! Mitsuba 3's `path` integrator (`src/integrators/path.cpp`): unidirectional path
+//! tracing with emitter sampling and BSDF sampling combined by the power heuristic.
+//!
+//! Depth: an emitter hit after `d` scattering events counts iff `d + 1 ≤ max_depth`;
+//! emitter sampling at depth `d` happens iff `d + 2 ≤ max_depth`. `null` surfaces count
+//! as a bounce, as in Mitsuba. Russian roulette from `depth ≥ rr_depth` continues with
+//! probability `min(max_c(throughput) · η², 0.95)`.
+
+use glam::{Vec3, Vec3A};
+
+use super::sampler::Pcg32;
+use crate::geometry::{offset_point, SHADOW_EPSILON};
+use crate::scene::{Scene, SurfaceInteraction};
+
+/// Power heuristic with β = 2: `a² / (a² + b²)`, 0 when not finite.
+#[inline]
+pub fn mis_weight(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    let w = a2 / (a2 + b2);
+    if w.is_finite() {
+        w
+    } else {
+        0.0
+    }
+}
+
+/// Where the previous bounce happened, for MIS of emitter hits.
+#[derive(Clone, Copy)]
+struct PrevVertex {
+    p: Vec3A,
+    bsdf_pdf: f32,
+    delta: bool,
+}
+
+/// Skips past emitter shapes along the camera ray (`hide_emitters`).
+fn skip_emitters(
+    scene: &Scene,
+    mut o: Vec3A,
+    d: Vec3A,
+    mut tmax: f32,
+) -> Option<SurfaceInteraction> {
+    loop {
+        let si = scene.intersect(o, d, tmax)?;
+        if scene.shapes[si.shape as usize].emitter.is_none() {
+            return Some(si);
+        }
+        let o2 = offset_point(si.p, si.n, d);
+        tmax -= (o2 - o).length();
+        o = o2;
+    }
+}
+
+/// One radiance sample along the camera ray (o, d).
+pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> Vec3 {
+    let s = &scene.integrator;
+    if s.max_depth == 0 {
+        return Vec3::ZERO;
+    }
+    let mut result = Vec3::ZERO;
+    let mut throughput = Vec3::ONE;
+    let mut eta = 1.0f32;
+    let mut depth: u32 = 0;
+    // With hide_emitters, the environment counts only once the path has scattered off a
+    // non-null surface (Mitsuba's `valid_ray`).
+    let mut valid_ray = !s.hide_emitters && scene.environment.is_some();
+    let mut prev = PrevVertex {
+        p: o,
+        bsdf_pdf: 1.0,
+        delta: true,
+    };
+    let mut ray_d = d;
+    let mut si = if s.hide_emitters {
+        skip_emitters(scene, o, d, tmax)
+    } else {
+        scene.intersect(o, d, tmax)
+    };
+    let n_emitters = scene.emitters.len() as f32;
+
+    loop {
+        // ---- Emission seen by this ray (area light hit, or the environment) ----
+        let emitter = match &si {
+            Some(h) => scene.shapes[h.shape as usize].emitter,
+            None => scene.environment,
+        };
+        if let Some(ei) = emitter {
+            let e = &scene.emitters[ei as usize];
+            let (le, em_pdf) = match (&si, e) {
+                (Some(h), crate::emitter::Emitter::Area { radiance, .. }) => {
+                    let cos = h.sh_frame.n.dot(-ray_d);
+                    let le = if cos > 0.0 { *radiance } else { Vec3::ZERO };
+                    let pdf = if prev.delta {
+                        0.0
+                    } else {
+                        e.pdf_direction(prev.p, h.p, h.sh_frame.n, ray_d, &scene.geometries)
+                            / n_emitters
+                    };
+                    (le, pdf)
+                }
+                (None, crate::emitter::Emitter::Constant { radiance }) => {
+                    let pdf = if prev.delta {
+                        0.0
+                    } else {
+                        e.pdf_direction(prev.p, prev.p, Vec3A::ZERO, ray_d, &scene.geometries)
+                            / n_emitters
+                    };
+                    (*radiance, pdf)
+                }
+                _ => (Vec3::ZERO, 0.0),
+            };
+            result += throughput * le * mis_weight(prev.bsdf_pdf, em_pdf);
+        }
+
+        let Some(h) = si else {
+            if emitter.is_some() && !s.hide_emitters {
+                valid_ray = true;
+            }
+            break;
+        };
+        if depth.saturating_add(1) >= s.max_depth {
+            if emitter.is_some() && !s.hide_emitters {
+                valid_ray = true;
+            }
+            break;
+        }
+        let info = &scene.shapes[h.shape as usize];
+        let bsdf = &scene.bsdfs[info.bsdf as usize];
+        let wi = h.sh_frame.to_local(-ray_d);
+
+        // ---- Emitter sampling ----
+        if bsdf.is_smooth() && !scene.emitters.is_empty() {
+            let u = rng.next_2d();
+            // Uniform selection, reusing the sample (Mitsuba's scene.cpp).
+            let x = u.x * n_emitters;
+            let idx = (x as usize).min(scene.emitters.len() - 1);
+            let u = glam::Vec2::new(x - idx as f32, u.y);
+            let e = &scene.emitters[idx];
+            if let Some(es) = e.sample_direction(h.p, u, &scene.geometries, &scene.bsphere) {
+                let wo = h.sh_frame.to_local(es.d);
+                let (f, bsdf_pdf) = bsdf.eval_pdf(wi, wo);
+                if f != Vec3::ZERO {
+                    // Shadow ray: spawn_ray_to(p), shortened by ShadowEpsilon.
+                    let so = offset_point(h.p, h.n, es.d);
+                    let v = es.p - so;
+                    let dist = v.length();
+                    if dist > 0.0 && !scene.occluded(so, v / dist, dist * (1.0 - SHADOW_EPSILON)) {
+                        let pdf = es.pdf / n_emitters;
+                        let w = if es.delta {
+                            1.0
+                        } else {
+                            mis_weight(pdf, bsdf_pdf)
+                        };
+                        result += throughput * f * es.weight * n_emitters * w;
+                    }
+                }
+            }
+        }
+
+        // ---- BSDF sampling ----
+        let s1 = rng.next_1d();
+        let s2 = rng.next_2d();
+        let sampled = bsdf.sample(wi, s1, s2);
+        // Any scattering off a non-null surface makes the environment count.
+        if !bsdf.is_null() {
+            valid_ray = true;
+        }
+        let Some(bs) = sampled else { break };
+        let wo_world = h.sh_frame.to_world(bs.wo);
+        throughput *= bs.weight;
+        eta *= bs.eta;
+        prev = PrevVertex {
+            p: h.p,
+            bsdf_pdf: bs.pdf,
+            delta: bs.delta,
+        };
+        depth += 1;
+
+        // ---- Russian roulette ----
+        let tmax_c = throughput.max_element();
+        let rr_prob = (tmax_c * eta * eta).min(0.95);
+        let u_rr = rng.next_1d();
+        if depth >= s.rr_depth {
+            if u_rr >= rr_prob {
+                break;
+            }
+            throughput /= rr_prob;
+        }
+        if tmax_c == 0.0 {
+            break;
+        }
+        let o2 = offset_point(h.p, h.n, wo_world);
+        ray_d = wo_world;
+        si = scene.intersect(o2, ray_d, f32::MAX);
+    }
+    if valid_ray {
+        result
+    } else {
+        Vec3::ZERO
+    }
+}

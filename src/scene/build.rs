@@ -1,0 +1,698 @@
+//! `SceneDescription` → `Scene`: one function per plugin, each reading its properties
+//! (Mitsuba's names and defaults) and failing on anything it does not understand.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use glam::{DMat4, DVec3, Mat4, Vec2, Vec3, Vec3A};
+
+use super::camera::{fov_x_degrees, PerspectiveCamera};
+use super::film::{Film, Rfilter};
+use super::props::Props;
+use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
+use crate::bsdf::dielectric::named_ior;
+use crate::bsdf::{Bsdf, Dielectric};
+use crate::emitter::{BSphere, Emitter};
+use crate::error::{err_at, Result, SceneError};
+use crate::geometry::accel::Accel;
+use crate::geometry::mesh::{cube, read_obj, read_ply, TriangleMesh};
+use crate::geometry::shape::{Geometry, Planar, Sphere};
+use crate::geometry::RAY_EPSILON;
+use crate::medium::{HomogeneousMedium, Phase};
+use crate::xml::description::{ObjId, ObjectKind, SceneDescription};
+use crate::xml::load::resolve_path;
+
+/// Mitsuba's `xyz_to_srgb` applied to XYZ = (1, 1, 1): in RGB mode a constant
+/// `<spectrum value="v"/>` given to an emitter becomes `v` times this color
+/// (`src/core/properties.cpp`, "A uniform spectrum does not produce a uniform RGB
+/// response in sRGB").
+pub const UNIFORM_SPECTRUM_RGB: Vec3 = Vec3::new(
+    3.240479 - 1.537150 - 0.498535,
+    -0.969256 + 1.875991 + 0.041556,
+    0.055648 - 0.204043 + 1.057311,
+);
+
+struct Builder<'a> {
+    desc: &'a SceneDescription,
+    bsdfs: Vec<Bsdf>,
+    bsdf_ids: HashMap<ObjId, u32>,
+    media: Vec<HomogeneousMedium>,
+    medium_ids: HashMap<ObjId, u32>,
+    geometries: Vec<Geometry>,
+    shapes: Vec<ShapeInfo>,
+    emitters: Vec<Emitter>,
+    environment: Option<u32>,
+}
+
+/// Options from the command line that override the file.
+#[derive(Clone, Debug, Default)]
+pub struct BuildOverrides {
+    pub spp: Option<u32>,
+    pub seed: Option<u64>,
+}
+
+pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Result<Scene> {
+    let mut b = Builder {
+        desc,
+        bsdfs: Vec::new(),
+        bsdf_ids: HashMap::new(),
+        media: Vec::new(),
+        medium_ids: HashMap::new(),
+        geometries: Vec::new(),
+        shapes: Vec::new(),
+        emitters: Vec::new(),
+        environment: None,
+    };
+    let root = Props::new(desc, desc.root);
+
+    let integrator = match root.child_of(ObjectKind::Integrator)? {
+        Some(c) => b.integrator(c.object)?,
+        None => IntegratorSettings {
+            kind: IntegratorKind::Path,
+            max_depth: u32::MAX,
+            rr_depth: 5,
+            hide_emitters: false,
+        },
+    };
+    for c in root.children_of(ObjectKind::Shape) {
+        b.shape(c.object)?;
+    }
+    for c in root.children_of(ObjectKind::Emitter) {
+        b.emitter(c.object, None)?;
+    }
+    // Top-level BSDFs and media are declarations for <ref>: build them so they are
+    // validated even when unused.
+    for c in root.children_of(ObjectKind::Bsdf) {
+        b.bsdf(c.object)?;
+    }
+    for c in root.children_of(ObjectKind::Medium) {
+        b.medium(c.object)?;
+    }
+    let sensors = root.children_of(ObjectKind::Sensor);
+    let sensor = match sensors.as_slice() {
+        [] => {
+            return Err(root
+                .error("the scene has no <sensor>")
+                .with_hint("add <sensor type=\"perspective\"> with a <film type=\"hdrfilm\">"))
+        }
+        [s] => s.object,
+        [_, second, ..] => return err_at(&second.loc, "only one <sensor> per scene is supported"),
+    };
+    let (camera, camera_medium, film, spp, seed) = b.sensor(sensor)?;
+    root.finish("integrator, sensor, shape, emitter, bsdf, medium")?;
+
+    let refs: Vec<&Geometry> = b.geometries.iter().collect();
+    let accel = Accel::build(&refs);
+    // Mitsuba's bounding sphere of the scene's bounding box, padded by RayEpsilon.
+    let bsphere = if accel.bounds.is_empty() {
+        BSphere {
+            center: Vec3A::ZERO,
+            radius: RAY_EPSILON,
+        }
+    } else {
+        let c = (accel.bounds.min + accel.bounds.max) * 0.5;
+        let r = (accel.bounds.max - c).length() * (1.0 + RAY_EPSILON);
+        BSphere {
+            center: c,
+            radius: r.max(RAY_EPSILON),
+        }
+    };
+    Ok(Scene {
+        geometries: b.geometries,
+        shapes: b.shapes,
+        bsdfs: b.bsdfs,
+        emitters: b.emitters,
+        environment: b.environment,
+        media: b.media,
+        accel,
+        bsphere,
+        camera,
+        camera_medium,
+        film,
+        spp: overrides.spp.unwrap_or(spp),
+        seed: overrides.seed.unwrap_or(seed),
+        integrator,
+    })
+}
+
+fn unsupported(p: &Props, kind: &str, supported: &str) -> SceneError {
+    SceneError::at(
+        p.loc(),
+        format!("unsupported {kind} plugin \"{}\"", p.obj.plugin),
+    )
+    .with_hint(format!("mediareg supports {kind} plugins: {supported}"))
+}
+
+fn to_mat4(m: DMat4) -> Mat4 {
+    m.as_mat4()
+}
+
+/// A color for an emitter: float and rgb as given, a constant spectrum as Mitsuba's RGB
+/// mode converts it (see `UNIFORM_SPECTRUM_RGB`).
+fn emissive(p: &Props, name: &str) -> Result<Vec3> {
+    use crate::xml::description::Value;
+    let is_spectrum = p
+        .obj
+        .props
+        .iter()
+        .any(|q| q.name == name && matches!(q.value, Value::Spectrum(_)));
+    let c = p.color_nonneg(name, Vec3::ONE)?;
+    Ok(if is_spectrum {
+        c * UNIFORM_SPECTRUM_RGB
+    } else {
+        c
+    })
+}
+
+impl Builder<'_> {
+    fn integrator(&self, id: ObjId) -> Result<IntegratorSettings> {
+        let p = Props::new(self.desc, id);
+        let kind = match p.obj.plugin.as_str() {
+            "path" => IntegratorKind::Path,
+            "volpath" => IntegratorKind::Volpath,
+            _ => return Err(unsupported(&p, "integrator", "path, volpath")),
+        };
+        let max_depth = p.int("max_depth", -1)?;
+        if max_depth < -1 {
+            return Err(p.error(format!(
+                "max_depth = {max_depth}: must be -1 (unbounded) or ≥ 0"
+            )));
+        }
+        let rr_depth = p.int("rr_depth", 5)?;
+        if rr_depth <= 0 {
+            return Err(p.error(format!("rr_depth = {rr_depth}: must be > 0")));
+        }
+        let hide_emitters = p.bool("hide_emitters", false)?;
+        p.finish("max_depth, rr_depth, hide_emitters")?;
+        Ok(IntegratorSettings {
+            kind,
+            max_depth: if max_depth == -1 {
+                u32::MAX
+            } else {
+                max_depth.min(u32::MAX as i64 - 1) as u32
+            },
+            rr_depth: rr_depth.min(u32::MAX as i64) as u32,
+            hide_emitters,
+        })
+    }
+
+    fn sensor(&mut self, id: ObjId) -> Result<(PerspectiveCamera, Option<u32>, Film, u32, u64)> {
+        let p = Props::new(self.desc, id);
+        if p.obj.plugin != "perspective" {
+            return Err(unsupported(&p, "sensor", "perspective"));
+        }
+        let film = match p.child_of(ObjectKind::Film)? {
+            Some(c) => self.film(c.object)?,
+            None => Film {
+                width: 768,
+                height: 576,
+                crop_offset: (0, 0),
+                crop_size: (768, 576),
+                rfilter: Rfilter::Gaussian { stddev: 0.5 },
+            },
+        };
+        let (spp, seed) = match p.child_of(ObjectKind::Sampler)? {
+            Some(c) => self.sampler(c.object)?,
+            None => (4, 0),
+        };
+        let aspect = film.width as f64 / film.height as f64;
+        let fov_x = if p.has("fov") {
+            if p.has("focal_length") {
+                return Err(p.error("give either fov or focal_length, not both"));
+            }
+            let fov = p.float("fov", 0.0)?;
+            if !(fov > 0.0 && fov < 180.0) {
+                return Err(p.error(format!("fov = {fov}: must be in (0, 180) degrees")));
+            }
+            let axis = p.string("fov_axis", "x")?.to_ascii_lowercase();
+            fov_x_degrees(fov, &axis, aspect).ok_or_else(|| {
+                p.error(format!(
+                    "fov_axis \"{axis}\": must be x, y, diagonal, smaller or larger"
+                ))
+            })?
+        } else {
+            // Mitsuba: a 35 mm-equivalent focal length (default 50mm) sets the diagonal fov.
+            let f = p.string("focal_length", "50mm")?;
+            let mm: f64 = f
+                .strip_suffix("mm")
+                .unwrap_or(&f)
+                .trim()
+                .parse()
+                .ok()
+                .filter(|v: &f64| *v > 0.0 && v.is_finite())
+                .ok_or_else(|| p.error(format!("focal_length \"{f}\": expected e.g. \"50mm\"")))?;
+            let fov = (2.0 * (36f64.hypot(24.0) / (2.0 * mm)).atan()).to_degrees();
+            fov_x_degrees(fov, "diagonal", aspect).unwrap()
+        };
+        let near_clip = p.float("near_clip", 1e-2)?;
+        let far_clip = p.float("far_clip", 1e4)?;
+        if !(near_clip > 0.0 && far_clip > near_clip) {
+            return Err(p.error(format!(
+                "near_clip = {near_clip}, far_clip = {far_clip}: need 0 < near_clip < far_clip"
+            )));
+        }
+        let ppo = Vec2::new(
+            p.float("principal_point_offset_x", 0.0)? as f32,
+            p.float("principal_point_offset_y", 0.0)? as f32,
+        );
+        let to_world = p.transform("to_world")?;
+        let medium = match p.named_child_of("medium", ObjectKind::Medium)? {
+            Some(c) => Some(self.medium(c.object)?),
+            None => None,
+        };
+        p.finish("fov, fov_axis, focal_length, near_clip, far_clip, principal_point_offset_x, principal_point_offset_y, to_world, film, sampler, medium")?;
+        let camera = PerspectiveCamera {
+            to_world: to_mat4(to_world),
+            tan_half_fov_x: (0.5 * fov_x).to_radians().tan() as f32,
+            aspect: aspect as f32,
+            near_clip: near_clip as f32,
+            far_clip: far_clip as f32,
+            principal_point_offset: ppo,
+            film_size: Vec2::new(film.width as f32, film.height as f32),
+        };
+        Ok((camera, medium, film, spp, seed))
+    }
+
+    fn film(&self, id: ObjId) -> Result<Film> {
+        let p = Props::new(self.desc, id);
+        if p.obj.plugin != "hdrfilm" {
+            return Err(unsupported(&p, "film", "hdrfilm"));
+        }
+        let width = p.int("width", 768)?;
+        let height = p.int("height", 576)?;
+        // 1 << 15 per side is far beyond any render this machine can hold; refuse early.
+        const MAX_SIDE: i64 = 1 << 15;
+        if !(1..=MAX_SIDE).contains(&width) || !(1..=MAX_SIDE).contains(&height) {
+            return Err(p.error(format!(
+                "film size {width} x {height}: width and height must be in [1, {MAX_SIDE}]"
+            )));
+        }
+        let cx = p.int("crop_offset_x", 0)?;
+        let cy = p.int("crop_offset_y", 0)?;
+        let cw = p.int("crop_width", width)?;
+        let ch = p.int("crop_height", height)?;
+        if cx < 0 || cy < 0 || cw < 1 || ch < 1 || cx + cw > width || cy + ch > height {
+            return Err(p.error(format!(
+                "crop window ({cx}, {cy}) + ({cw} x {ch}) does not fit the {width} x {height} film"
+            )));
+        }
+        let pixel_format = p.string("pixel_format", "rgb")?.to_ascii_lowercase();
+        if pixel_format != "rgb" {
+            return Err(p.error(format!(
+                "pixel_format \"{pixel_format}\" is not supported: mediareg writes RGB (use \"rgb\")"
+            )));
+        }
+        // Storage precision only: mediareg always writes float32.
+        let component_format = p
+            .string("component_format", "float16")?
+            .to_ascii_lowercase();
+        if !["float16", "float32"].contains(&component_format.as_str()) {
+            return Err(p.error(format!(
+                "component_format \"{component_format}\": use float16 or float32"
+            )));
+        }
+        let file_format = p.string("file_format", "openexr")?.to_ascii_lowercase();
+        if !["openexr", "exr"].contains(&file_format.as_str()) {
+            return Err(p.error(format!(
+                "file_format \"{file_format}\": only openexr is supported"
+            )));
+        }
+        if p.bool("sample_border", false)? {
+            return Err(p.error("sample_border = true is not supported"));
+        }
+        let rfilter = match p.child_of(ObjectKind::Rfilter)? {
+            Some(c) => self.rfilter(c.object)?,
+            None => Rfilter::Gaussian { stddev: 0.5 },
+        };
+        p.finish("width, height, crop_offset_x, crop_offset_y, crop_width, crop_height, pixel_format, component_format, file_format, sample_border, rfilter")?;
+        Ok(Film {
+            width: width as usize,
+            height: height as usize,
+            crop_offset: (cx as usize, cy as usize),
+            crop_size: (cw as usize, ch as usize),
+            rfilter,
+        })
+    }
+
+    fn rfilter(&self, id: ObjId) -> Result<Rfilter> {
+        let p = Props::new(self.desc, id);
+        let f = match p.obj.plugin.as_str() {
+            "box" => Rfilter::Box,
+            "tent" => Rfilter::Tent {
+                radius: p.float_in("radius", 1.0, 1e-3, 16.0)? as f32,
+            },
+            "gaussian" => Rfilter::Gaussian {
+                stddev: p.float_in("stddev", 0.5, 1e-3, 4.0)? as f32,
+            },
+            _ => return Err(unsupported(&p, "rfilter", "box, tent, gaussian")),
+        };
+        p.finish("radius (tent), stddev (gaussian)")?;
+        Ok(f)
+    }
+
+    fn sampler(&self, id: ObjId) -> Result<(u32, u64)> {
+        let p = Props::new(self.desc, id);
+        if p.obj.plugin != "independent" {
+            return Err(unsupported(&p, "sampler", "independent"));
+        }
+        let spp = p.int("sample_count", 4)?;
+        if !(1..=1 << 24).contains(&spp) {
+            return Err(p.error(format!("sample_count = {spp}: must be in [1, {}]", 1 << 24)));
+        }
+        let seed = p.int("seed", 0)?;
+        if seed < 0 {
+            return Err(p.error(format!("seed = {seed}: must be ≥ 0")));
+        }
+        p.finish("sample_count, seed")?;
+        Ok((spp as u32, seed as u64))
+    }
+
+    fn shape(&mut self, id: ObjId) -> Result<()> {
+        let p = Props::new(self.desc, id);
+        let to_world = p.transform("to_world")?;
+        let flip_normals = p.bool("flip_normals", false)?;
+        let geometry = match p.obj.plugin.as_str() {
+            "ply" | "obj" => {
+                let (name, loc) = p
+                    .string_opt("filename")?
+                    .ok_or_else(|| p.error("missing the \"filename\" property"))?;
+                let path = resolve_path(&self.desc.search_path, name).ok_or_else(|| {
+                    let dirs: Vec<String> = self.desc.search_path.iter().map(|d| d.display().to_string()).collect();
+                    SceneError::at(loc, format!("mesh file \"{name}\" not found"))
+                        .with_hint(format!(
+                            "searched: {}; add its folder with -a DIR (for the Stanford meshes run scripts/fetch_meshes)",
+                            dirs.join(", ")
+                        ))
+                })?;
+                let face_normals = p.bool("face_normals", false)?;
+                let raw = if p.obj.plugin == "ply" {
+                    read_ply(&path)?
+                } else {
+                    // Texture coordinates are not used by any supported BSDF.
+                    p.bool("flip_tex_coords", true)?;
+                    read_obj(&path)?
+                };
+                Geometry::Mesh(TriangleMesh::new(
+                    raw,
+                    &to_mat4(to_world),
+                    face_normals,
+                    flip_normals,
+                    Path::new(&path),
+                )?)
+            }
+            "cube" => Geometry::Mesh(TriangleMesh::new(
+                cube(),
+                &to_mat4(to_world),
+                true,
+                flip_normals,
+                Path::new("cube"),
+            )?),
+            "sphere" => {
+                let center = p.point_opt("center")?.unwrap_or(DVec3::ZERO);
+                let radius = p.float("radius", 1.0)?;
+                if radius <= 0.0 {
+                    return Err(p.error(format!("radius = {radius}: must be > 0")));
+                }
+                // Mitsuba: to_world · translate(center) · scale(radius); only similarity
+                // transforms keep it a sphere.
+                let c = to_world.transform_point3(center);
+                let axes =
+                    [DVec3::X, DVec3::Y, DVec3::Z].map(|a| to_world.transform_vector3(a).length());
+                if (axes[0] - axes[1]).abs() > 1e-6 * axes[0]
+                    || (axes[0] - axes[2]).abs() > 1e-6 * axes[0]
+                {
+                    return Err(p.error("to_world scales the sphere non-uniformly; use a ply/obj mesh for an ellipsoid"));
+                }
+                Geometry::Sphere(Sphere {
+                    center: c.as_vec3().into(),
+                    radius: (radius * axes[0]) as f32,
+                    flip_normals,
+                })
+            }
+            "rectangle" => Geometry::Planar(Planar::new(to_mat4(to_world), flip_normals, false)),
+            "disk" => Geometry::Planar(Planar::new(to_mat4(to_world), flip_normals, true)),
+            _ => {
+                return Err(unsupported(
+                    &p,
+                    "shape",
+                    "ply, obj, sphere, cube, rectangle, disk",
+                ))
+            }
+        };
+        let shape_index = self.geometries.len() as u32;
+        let emitter = match p.child_of(ObjectKind::Emitter)? {
+            Some(c) => Some(self.emitter(c.object, Some(shape_index))?),
+            None => None,
+        };
+        let bsdf = match p.child_of(ObjectKind::Bsdf)? {
+            Some(c) => self.bsdf(c.object)?,
+            None => {
+                // Mitsuba's default: diffuse 0.5, or black for an emitter.
+                let r = if emitter.is_some() { 0.0 } else { 0.5 };
+                self.bsdfs.push(Bsdf::Diffuse {
+                    reflectance: Vec3::splat(r),
+                });
+                self.bsdfs.len() as u32 - 1
+            }
+        };
+        let interior = match p.named_child_of("interior", ObjectKind::Medium)? {
+            Some(c) => Some(self.medium(c.object)?),
+            None => None,
+        };
+        let exterior = match p.named_child_of("exterior", ObjectKind::Medium)? {
+            Some(c) => Some(self.medium(c.object)?),
+            None => None,
+        };
+        let names = match p.obj.plugin.as_str() {
+            "ply" => "filename, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
+            "obj" => "filename, to_world, face_normals, flip_normals, flip_tex_coords, bsdf, emitter, interior, exterior",
+            "sphere" => "center, radius, to_world, flip_normals, bsdf, emitter, interior, exterior",
+            _ => "to_world, flip_normals, bsdf, emitter, interior, exterior",
+        };
+        p.finish(names)?;
+        self.geometries.push(geometry);
+        self.shapes.push(ShapeInfo {
+            bsdf,
+            emitter,
+            interior,
+            exterior,
+        });
+        Ok(())
+    }
+
+    fn bsdf(&mut self, id: ObjId) -> Result<u32> {
+        if let Some(&i) = self.bsdf_ids.get(&id) {
+            return Ok(i);
+        }
+        let b = self.bsdf_value(id)?;
+        self.bsdfs.push(b);
+        let i = self.bsdfs.len() as u32 - 1;
+        self.bsdf_ids.insert(id, i);
+        Ok(i)
+    }
+
+    fn bsdf_value(&self, id: ObjId) -> Result<Bsdf> {
+        let p = Props::new(self.desc, id);
+        let b = match p.obj.plugin.as_str() {
+            "null" => {
+                p.finish("(no parameters)")?;
+                Bsdf::Null
+            }
+            "diffuse" => {
+                let r = p.color_nonneg("reflectance", Vec3::splat(0.5))?;
+                if r.max_element() > 1.0 {
+                    return Err(p.error(format!("reflectance {r} must be in [0, 1]")));
+                }
+                p.finish("reflectance")?;
+                Bsdf::Diffuse { reflectance: r }
+            }
+            "dielectric" => {
+                let int_ior = ior(&p, "int_ior", "bk7")?;
+                let ext_ior = ior(&p, "ext_ior", "air")?;
+                let sr = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
+                let st = p.color_nonneg("specular_transmittance", Vec3::ONE)?;
+                p.finish("int_ior, ext_ior, specular_reflectance, specular_transmittance")?;
+                Bsdf::Dielectric(Dielectric {
+                    eta: (int_ior / ext_ior) as f32,
+                    specular_reflectance: sr,
+                    specular_transmittance: st,
+                })
+            }
+            "twosided" => {
+                let nested = p.children_of(ObjectKind::Bsdf);
+                let (front, back) = match nested.as_slice() {
+                    [one] => {
+                        let b = self.bsdf_value(one.object)?;
+                        (b.clone(), b)
+                    }
+                    [a, b] => (self.bsdf_value(a.object)?, self.bsdf_value(b.object)?),
+                    _ => return Err(p.error("twosided needs one or two nested <bsdf>")),
+                };
+                p.finish("one or two nested bsdf")?;
+                Bsdf::TwoSided(Box::new([front, back]))
+            }
+            _ => {
+                return Err(unsupported(
+                    &p,
+                    "bsdf",
+                    "null, diffuse, dielectric, twosided",
+                ))
+            }
+        };
+        Ok(b)
+    }
+
+    fn emitter(&mut self, id: ObjId, shape: Option<u32>) -> Result<u32> {
+        let p = Props::new(self.desc, id);
+        let e = match (p.obj.plugin.as_str(), shape) {
+            ("area", Some(s)) => {
+                let radiance = emissive(&p, "radiance")?;
+                p.finish("radiance")?;
+                Emitter::Area { shape: s, radiance }
+            }
+            ("area", None) => {
+                return Err(p.error("an area emitter must be nested inside a <shape>"))
+            }
+            (_, Some(_)) => {
+                return Err(p.error("only an \"area\" emitter can be attached to a shape"))
+            }
+            ("point", None) => {
+                let intensity = emissive(&p, "intensity")?;
+                let pos = p.point_opt("position")?;
+                let tw = p.has("to_world");
+                let position = match (pos, tw) {
+                    (Some(_), true) => {
+                        return Err(p.error("give either position or to_world, not both"))
+                    }
+                    (Some(x), false) => x,
+                    (None, _) => p.transform("to_world")?.transform_point3(DVec3::ZERO),
+                };
+                p.finish("intensity, position, to_world")?;
+                Emitter::Point {
+                    position: position.as_vec3().into(),
+                    intensity,
+                }
+            }
+            ("constant", None) => {
+                let radiance = emissive(&p, "radiance")?;
+                if self.environment.is_some() {
+                    return Err(p.error("only one environment emitter is allowed"));
+                }
+                p.finish("radiance")?;
+                self.environment = Some(self.emitters.len() as u32);
+                Emitter::Constant { radiance }
+            }
+            ("directional", None) => {
+                let irradiance = emissive(&p, "irradiance")?;
+                let dir = p.vector_opt("direction")?;
+                let tw = p.has("to_world");
+                let d = match (dir, tw) {
+                    (Some(_), true) => {
+                        return Err(p.error("give either direction or to_world, not both"))
+                    }
+                    (Some(d), false) => d,
+                    (None, _) => p.transform("to_world")?.transform_vector3(DVec3::Z),
+                };
+                let d = d
+                    .try_normalize()
+                    .ok_or_else(|| p.error("the light direction must be a nonzero vector"))?;
+                p.finish("irradiance, direction, to_world")?;
+                Emitter::Directional {
+                    direction: d.as_vec3().into(),
+                    irradiance,
+                }
+            }
+            _ => {
+                return Err(unsupported(
+                    &p,
+                    "emitter",
+                    "area, point, constant, directional",
+                ))
+            }
+        };
+        self.emitters.push(e);
+        Ok(self.emitters.len() as u32 - 1)
+    }
+
+    fn medium(&mut self, id: ObjId) -> Result<u32> {
+        if let Some(&i) = self.medium_ids.get(&id) {
+            return Ok(i);
+        }
+        let p = Props::new(self.desc, id);
+        if p.obj.plugin != "homogeneous" {
+            return Err(unsupported(&p, "medium", "homogeneous").with_hint(
+                "heterogeneous (grid) media are out of scope; mediareg supports homogeneous media",
+            ));
+        }
+        let albedo = p.color_nonneg("albedo", Vec3::splat(0.75))?;
+        if albedo.max_element() > 1.0 {
+            return Err(p.error(format!("albedo {albedo} must be in [0, 1]")));
+        }
+        let sigma_t = p.color_nonneg("sigma_t", Vec3::ONE)?;
+        let scale = p.float("scale", 1.0)?;
+        if scale <= 0.0 {
+            return Err(p.error(format!("scale = {scale}: must be > 0")));
+        }
+        let sample_emitters = p.bool("sample_emitters", true)?;
+        // Mitsuba's flag for RGB sigma_t; RGB extinction is always handled here.
+        p.bool("has_spectral_extinction", true)?;
+        let phase = match p.child_of(ObjectKind::Phase)? {
+            Some(c) => {
+                let q = Props::new(self.desc, c.object);
+                let ph = match q.obj.plugin.as_str() {
+                    "isotropic" => Phase::Isotropic,
+                    "hg" => {
+                        let g = q.float("g", 0.8)?;
+                        if !(g > -1.0 && g < 1.0) {
+                            return Err(
+                                q.error(format!("g = {g}: the asymmetry must lie in (-1, 1)"))
+                            );
+                        }
+                        Phase::HenyeyGreenstein { g: g as f32 }
+                    }
+                    _ => return Err(unsupported(&q, "phase", "isotropic, hg")),
+                };
+                q.finish("g (hg)")?;
+                ph
+            }
+            None => Phase::Isotropic,
+        };
+        p.finish("albedo, sigma_t, scale, sample_emitters, has_spectral_extinction, phase")?;
+        self.media.push(HomogeneousMedium {
+            albedo,
+            sigma_t: sigma_t * scale as f32,
+            phase,
+            sample_emitters,
+        });
+        let i = self.media.len() as u32 - 1;
+        self.medium_ids.insert(id, i);
+        Ok(i)
+    }
+}
+
+/// An index of refraction: a number, or one of Mitsuba's named materials.
+fn ior(p: &Props, name: &str, default: &str) -> Result<f64> {
+    use crate::xml::description::Value;
+    let given = p.obj.props.iter().find(|q| q.name == name);
+    let v = match given.map(|q| &q.value) {
+        Some(Value::String(_)) | None => {
+            let s = p.string(name, default)?;
+            named_ior(&s).map(|v| v as f64).ok_or_else(|| {
+                let names: Vec<&str> = crate::bsdf::dielectric::NAMED_IOR
+                    .iter()
+                    .map(|(n, _)| *n)
+                    .collect();
+                SceneError::at(
+                    &given.map_or(p.obj.loc.clone(), |q| q.loc.clone()),
+                    format!("unknown material \"{s}\" for {name}"),
+                )
+                .with_hint(format!("give a number or one of: {}", names.join(", ")))
+            })?
+        }
+        Some(_) => p.float(name, 1.0)?,
+    };
+    if !(v > 0.0 && v.is_finite()) {
+        return Err(p.error(format!("{name} = {v}: must be a finite index > 0")));
+    }
+    Ok(v)
+}

@@ -1,0 +1,211 @@
+//! Mitsuba 3's `hdrfilm` and its reconstruction filters (`src/films/hdrfilm.cpp`,
+//! `src/render/imageblock.cpp`, `src/rfilters/`).
+//!
+//! A sample at continuous film position `pos` (pixel `i` covers [i, i+1)) adds
+//! `w(x)·w(y)·L` and `w(x)·w(y)` to every pixel whose center lies within the filter
+//! radius; the developed pixel is Σ w L / Σ w. The box filter takes Mitsuba's fast path:
+//! the sample goes to pixel ⌊pos⌋ with weight 1.
+
+use glam::Vec3;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Rfilter {
+    /// radius 0.5
+    Box,
+    /// max(0, 1 − |x| / radius), default radius 1
+    Tent { radius: f32 },
+    /// max(0, exp(−x²/2σ²) − exp(−r²/2σ²)), r = 4σ, default σ = 0.5
+    Gaussian { stddev: f32 },
+}
+
+impl Rfilter {
+    pub fn radius(&self) -> f32 {
+        match self {
+            Rfilter::Box => 0.5,
+            Rfilter::Tent { radius } => *radius,
+            Rfilter::Gaussian { stddev } => 4.0 * stddev,
+        }
+    }
+
+    #[inline]
+    pub fn eval(&self, x: f32) -> f32 {
+        match self {
+            Rfilter::Box => {
+                if (-0.5..0.5).contains(&x) {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            Rfilter::Tent { radius } => (1.0 - (x / radius).abs()).max(0.0),
+            Rfilter::Gaussian { stddev } => {
+                let alpha = -1.0 / (2.0 * stddev * stddev);
+                let r = 4.0 * stddev;
+                ((alpha * x * x).exp() - (alpha * r * r).exp()).max(0.0)
+            }
+        }
+    }
+
+    /// How many pixels beyond a block's edge a sample can reach.
+    pub fn border(&self) -> usize {
+        match self {
+            Rfilter::Box => 0,
+            _ => (self.radius() - 0.5).ceil().max(0.0) as usize,
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Film {
+    /// Full film size.
+    pub width: usize,
+    pub height: usize,
+    /// The crop window (the output image): offset and size in pixels.
+    pub crop_offset: (usize, usize),
+    pub crop_size: (usize, usize),
+    pub rfilter: Rfilter,
+}
+
+/// A rectangle of accumulated samples (Σ w·L and Σ w per pixel), with a border wide
+/// enough for the filter. Coordinates are in crop-window pixels.
+pub struct ImageBlock {
+    pub offset: (i64, i64),
+    pub size: (usize, usize),
+    pub border: usize,
+    /// Per pixel: (Σ wL).rgb, Σ w
+    pub data: Vec<[f32; 4]>,
+}
+
+impl ImageBlock {
+    pub fn new(offset: (i64, i64), size: (usize, usize), border: usize) -> Self {
+        let w = size.0 + 2 * border;
+        let h = size.1 + 2 * border;
+        ImageBlock {
+            offset,
+            size,
+            border,
+            data: vec![[0.0; 4]; w * h],
+        }
+    }
+
+    pub fn clear(&mut self) {
+        self.data.fill([0.0; 4]);
+    }
+
+    fn full_width(&self) -> usize {
+        self.size.0 + 2 * self.border
+    }
+
+    /// Splats radiance `l` at crop-relative position `pos`.
+    #[inline]
+    pub fn put(&mut self, pos: (f32, f32), l: Vec3, filter: &Rfilter) {
+        let b = self.border as f32;
+        let fw = self.full_width();
+        let fh = self.size.1 + 2 * self.border;
+        let px = pos.0 - self.offset.0 as f32 + b;
+        let py = pos.1 - self.offset.1 as f32 + b;
+        if let Rfilter::Box = filter {
+            let (ix, iy) = (px.floor(), py.floor());
+            if ix >= 0.0 && iy >= 0.0 && (ix as usize) < fw && (iy as usize) < fh {
+                let p = &mut self.data[iy as usize * fw + ix as usize];
+                p[0] += l.x;
+                p[1] += l.y;
+                p[2] += l.z;
+                p[3] += 1.0;
+            }
+            return;
+        }
+        let r = filter.radius();
+        // Pixel centers at i + 0.5.
+        let cx = px - 0.5;
+        let cy = py - 0.5;
+        let x0 = (cx - r).ceil().max(0.0) as usize;
+        let x1 = ((cx + r).floor() as i64).min(fw as i64 - 1);
+        let y0 = (cy - r).ceil().max(0.0) as usize;
+        let y1 = ((cy + r).floor() as i64).min(fh as i64 - 1);
+        if x1 < x0 as i64 || y1 < y0 as i64 {
+            return;
+        }
+        for y in y0..=y1 as usize {
+            let wy = filter.eval(y as f32 - cy);
+            if wy == 0.0 {
+                continue;
+            }
+            for x in x0..=x1 as usize {
+                let w = wy * filter.eval(x as f32 - cx);
+                let p = &mut self.data[y * fw + x];
+                p[0] += w * l.x;
+                p[1] += w * l.y;
+                p[2] += w * l.z;
+                p[3] += w;
+            }
+        }
+    }
+
+    /// Adds this block into `target` (a block covering the whole crop, border included).
+    pub fn accumulate_into(&self, target: &mut ImageBlock) {
+        let fw = self.full_width();
+        let tw = target.full_width();
+        let th = (target.size.1 + 2 * target.border) as i64;
+        for (i, v) in self.data.iter().enumerate() {
+            let x = (i % fw) as i64 + self.offset.0 - self.border as i64 + target.border as i64
+                - target.offset.0;
+            let y = (i / fw) as i64 + self.offset.1 - self.border as i64 + target.border as i64
+                - target.offset.1;
+            if x < 0 || y < 0 || x >= tw as i64 || y >= th {
+                continue;
+            }
+            let t = &mut target.data[y as usize * tw + x as usize];
+            for k in 0..4 {
+                t[k] += v[k];
+            }
+        }
+    }
+
+    /// The developed image (interior only): Σ w L / Σ w, row-major RGB.
+    pub fn develop(&self) -> Vec<[f32; 3]> {
+        let fw = self.full_width();
+        let mut out = Vec::with_capacity(self.size.0 * self.size.1);
+        for y in 0..self.size.1 {
+            for x in 0..self.size.0 {
+                let p = self.data[(y + self.border) * fw + x + self.border];
+                out.push(if p[3] > 0.0 {
+                    [p[0] / p[3], p[1] / p[3], p[2] / p[3]]
+                } else {
+                    [0.0; 3]
+                });
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gaussian_filter_vanishes_at_radius() {
+        let g = Rfilter::Gaussian { stddev: 0.5 };
+        assert_eq!(g.radius(), 2.0);
+        assert!(g.eval(2.0).abs() < 1e-7 && g.eval(0.0) > 0.99);
+    }
+
+    #[test]
+    fn splat_normalizes_to_the_sample_value() {
+        for f in [
+            Rfilter::Box,
+            Rfilter::Tent { radius: 1.0 },
+            Rfilter::Gaussian { stddev: 0.5 },
+        ] {
+            let mut b = ImageBlock::new((0, 0), (4, 4), f.border());
+            b.put((1.3, 2.7), Vec3::splat(2.0), &f);
+            let img = b.develop();
+            let covered: Vec<_> = img.iter().filter(|p| p[0] > 0.0).collect();
+            assert!(!covered.is_empty());
+            for p in covered {
+                assert!((p[0] - 2.0).abs() < 1e-5, "{f:?}: {p:?}");
+            }
+        }
+    }
+}

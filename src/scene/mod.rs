@@ -1,0 +1,112 @@
+//! The built scene: everything the integrator needs, nothing about XML.
+
+pub mod build;
+pub mod camera;
+pub mod film;
+pub mod props;
+
+use glam::Vec3A;
+
+use crate::bsdf::Bsdf;
+use crate::emitter::{BSphere, Emitter};
+use crate::geometry::accel::{Accel, Hit};
+use crate::geometry::shape::Geometry;
+use crate::geometry::Frame;
+use crate::medium::HomogeneousMedium;
+use camera::PerspectiveCamera;
+use film::Film;
+
+pub use build::build_scene;
+
+/// Which integrator the file asks for, with its settings.
+#[derive(Clone, Debug, PartialEq)]
+pub enum IntegratorKind {
+    Path,
+    Volpath,
+}
+
+#[derive(Clone, Debug)]
+pub struct IntegratorSettings {
+    pub kind: IntegratorKind,
+    /// `u32::MAX` for Mitsuba's −1 (unbounded).
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    pub hide_emitters: bool,
+}
+
+/// What a shape is made of and what it emits, besides its geometry.
+#[derive(Clone, Debug)]
+pub struct ShapeInfo {
+    pub bsdf: u32,
+    pub emitter: Option<u32>,
+    pub interior: Option<u32>,
+    pub exterior: Option<u32>,
+}
+
+pub struct Scene {
+    pub geometries: Vec<Geometry>,
+    pub shapes: Vec<ShapeInfo>,
+    pub bsdfs: Vec<Bsdf>,
+    pub emitters: Vec<Emitter>,
+    /// The environment emitter (a `constant`), seen by rays that miss.
+    pub environment: Option<u32>,
+    pub media: Vec<HomogeneousMedium>,
+    pub accel: Accel,
+    pub bsphere: BSphere,
+    pub camera: PerspectiveCamera,
+    /// The medium the sensor sits in (`<ref name="medium">` inside the sensor).
+    pub camera_medium: Option<u32>,
+    pub film: Film,
+    pub spp: u32,
+    pub seed: u64,
+    pub integrator: IntegratorSettings,
+}
+
+/// A ray's hit, with the local geometry the integrator needs.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceInteraction {
+    pub t: f32,
+    pub p: Vec3A,
+    /// Geometric normal (after flip_normals).
+    pub n: Vec3A,
+    /// Shading frame (around the interpolated normal).
+    pub sh_frame: Frame,
+    pub shape: u32,
+}
+
+impl Scene {
+    #[inline]
+    pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<SurfaceInteraction> {
+        let hit = self.accel.intersect(&self.geometries, o, d, tmax)?;
+        Some(self.interaction(o, d, &hit))
+    }
+
+    #[inline]
+    pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32) -> bool {
+        self.accel.occluded(&self.geometries, o, d, tmax)
+    }
+
+    fn interaction(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> SurfaceInteraction {
+        let (p, n, sh_n) = match &self.geometries[hit.shape as usize] {
+            Geometry::Mesh(m) => m.surface(hit.prim, hit.u, hit.v),
+            Geometry::Sphere(s) => {
+                // Project onto the sphere to remove the error of o + t d.
+                let p0 = o + d * hit.t;
+                let p = s.center + (p0 - s.center).normalize_or_zero() * s.radius;
+                let n = s.normal_at(p);
+                (p, n, n)
+            }
+            Geometry::Planar(pl) => {
+                let p = o + d * hit.t;
+                (p, pl.normal, pl.normal)
+            }
+        };
+        SurfaceInteraction {
+            t: hit.t,
+            p,
+            n,
+            sh_frame: Frame::new(sh_n),
+            shape: hit.shape,
+        }
+    }
+}

@@ -1,0 +1,160 @@
+//! The scene *description*: what the file says, and nothing more. A tree (really a DAG,
+//! because of `<ref>`) of plugin objects with typed properties, each with its position in
+//! the source. `scene::build` turns it into render state.
+
+use glam::{DMat4, DVec3};
+
+use crate::error::Loc;
+
+/// Index of an object in `SceneDescription::objects`.
+pub type ObjId = usize;
+
+/// The plugin kinds of Mitsuba 3, named by their XML tag.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ObjectKind {
+    Scene,
+    Integrator,
+    Sensor,
+    Film,
+    Sampler,
+    Shape,
+    Bsdf,
+    Emitter,
+    Medium,
+    Phase,
+    Rfilter,
+    Texture,
+    Volume,
+    Spectrum,
+}
+
+impl ObjectKind {
+    pub fn from_tag(tag: &str) -> Option<Self> {
+        Some(match tag {
+            "scene" => Self::Scene,
+            "integrator" => Self::Integrator,
+            "sensor" => Self::Sensor,
+            "film" => Self::Film,
+            "sampler" => Self::Sampler,
+            "shape" => Self::Shape,
+            "bsdf" => Self::Bsdf,
+            "emitter" => Self::Emitter,
+            "medium" => Self::Medium,
+            "phase" => Self::Phase,
+            "rfilter" => Self::Rfilter,
+            "texture" => Self::Texture,
+            "volume" => Self::Volume,
+            _ => return None,
+        })
+    }
+
+    pub fn tag(self) -> &'static str {
+        match self {
+            Self::Scene => "scene",
+            Self::Integrator => "integrator",
+            Self::Sensor => "sensor",
+            Self::Film => "film",
+            Self::Sampler => "sampler",
+            Self::Shape => "shape",
+            Self::Bsdf => "bsdf",
+            Self::Emitter => "emitter",
+            Self::Medium => "medium",
+            Self::Phase => "phase",
+            Self::Rfilter => "rfilter",
+            Self::Texture => "texture",
+            Self::Volume => "volume",
+            Self::Spectrum => "spectrum",
+        }
+    }
+}
+
+/// A typed property value, as written in the file (double precision until build).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Value {
+    Float(f64),
+    Integer(i64),
+    Boolean(bool),
+    String(String),
+    Point(DVec3),
+    Vector(DVec3),
+    Rgb(DVec3),
+    /// A constant `<spectrum value="v"/>`.
+    Spectrum(f64),
+    Transform(DMat4),
+}
+
+impl Value {
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Value::Float(_) => "float",
+            Value::Integer(_) => "integer",
+            Value::Boolean(_) => "boolean",
+            Value::String(_) => "string",
+            Value::Point(_) => "point",
+            Value::Vector(_) => "vector",
+            Value::Rgb(_) => "rgb",
+            Value::Spectrum(_) => "spectrum",
+            Value::Transform(_) => "transform",
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Property {
+    pub name: String,
+    pub value: Value,
+    pub loc: Loc,
+}
+
+/// A nested object (or a `<ref>` to one) inside another object.
+#[derive(Clone, Debug)]
+pub struct Child {
+    /// The `name` attribute (e.g. `interior`), if given.
+    pub name: Option<String>,
+    pub object: ObjId,
+    /// Where the child (or the `<ref>`) appears.
+    pub loc: Loc,
+}
+
+#[derive(Clone, Debug)]
+pub struct Object {
+    pub kind: ObjectKind,
+    /// The `type` attribute: the plugin name (`diffuse`, `ply`, ...). "scene" for the root.
+    pub plugin: String,
+    pub id: Option<String>,
+    pub props: Vec<Property>,
+    pub children: Vec<Child>,
+    pub loc: Loc,
+}
+
+impl Object {
+    /// `<shape type="ply" id="x">` style label for messages.
+    pub fn label(&self) -> String {
+        match &self.id {
+            Some(id) => format!("{} \"{}\" (id \"{}\")", self.kind.tag(), self.plugin, id),
+            None => format!("{} \"{}\"", self.kind.tag(), self.plugin),
+        }
+    }
+}
+
+/// A loaded scene file: all objects, the root, and every file the scene read (for
+/// provenance hashes).
+#[derive(Clone, Debug)]
+pub struct SceneDescription {
+    pub objects: Vec<Object>,
+    pub root: ObjId,
+    /// The scene file and every included file, in the order read.
+    pub files: Vec<std::path::PathBuf>,
+    /// Directories searched for relative file names: the scene's folder, then each `-a`.
+    pub search_path: Vec<std::path::PathBuf>,
+}
+
+impl SceneDescription {
+    pub fn object(&self, id: ObjId) -> &Object {
+        &self.objects[id]
+    }
+
+    pub fn root(&self) -> &Object {
+        &self.objects[self.root]
+    }
+}
