@@ -263,6 +263,14 @@ impl TriangleMesh {
         if positions.iter().any(|p| !p.is_finite()) {
             return Err(mesh_error(path, "mesh has a non-finite vertex position"));
         }
+        // A mirroring transform would turn the geometric normals inward: Mitsuba reverses
+        // the winding then, so they keep pointing where the file's winding said.
+        let mut raw = raw;
+        if to_world.determinant() < 0.0 {
+            for t in &mut raw.triangles {
+                t.swap(1, 2);
+            }
+        }
         let normals = if face_normals {
             None
         } else {

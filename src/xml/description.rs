@@ -157,4 +157,20 @@ impl SceneDescription {
     pub fn root(&self) -> &Object {
         &self.objects[self.root]
     }
+
+    /// Every file the scene depends on: the scene file, its includes, and each asset
+    /// named by a `filename` property that resolves on the search path.
+    pub fn referenced_files(&self) -> Vec<std::path::PathBuf> {
+        let mut out = self.files.clone();
+        for o in &self.objects {
+            for p in &o.props {
+                if let (true, Value::String(name)) = (p.name == "filename", &p.value) {
+                    if let Some(path) = super::load::resolve_path(&self.search_path, name) {
+                        out.push(path);
+                    }
+                }
+            }
+        }
+        out
+    }
 }

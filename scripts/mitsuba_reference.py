@@ -1,0 +1,164 @@
+#!/usr/bin/env python3
+"""Render a reference image of a scene with the real Mitsuba 3 (pip package `mitsuba`).
+
+Writes, into --out (default: reference/):
+  NAME.exr        the mean of all chunks (linear RGB, float32)
+  NAME_var.exr    per pixel and channel, the variance of that mean
+                  (sample variance of the chunk images / number of chunks)
+  NAME_half0.exr, NAME_half1.exr   the means of the two independent halves of the chunks
+  NAME.json       provenance: Mitsuba version, variant, spp, chunks, seeds, seconds,
+                  parameters, and the sha256 of the scene file, its includes and every
+                  asset it names, so a test can tell when a reference has gone stale.
+
+Each chunk renders spp/chunks samples per pixel with its own seed; chunks are
+independent, so their spread estimates the variance of the mean.
+
+Usage:
+  scripts/mitsuba_reference.py mitsuba_scenes/cbox.xml --spp 4096 --chunks 8 \
+      [-a ../shared/meshes] [-D name=value]... [--variant llvm_ad_rgb]
+"""
+import argparse
+import datetime
+import hashlib
+import json
+import os
+import re
+import sys
+import time
+import xml.etree.ElementTree as ET
+
+
+def sha256(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def resolve(name, search):
+    if os.path.isabs(name):
+        return name if os.path.exists(name) else None
+    for d in search:
+        p = os.path.join(d, name)
+        if os.path.exists(p):
+            return p
+    return None
+
+
+def referenced_files(scene_path, search, params):
+    """The scene file, its <include>s and every `filename` string property, resolved
+    like Mitsuba's file resolver (scene folder first, then each -a folder)."""
+    out = {}
+    stack = [scene_path]
+    while stack:
+        path = stack.pop()
+        out[os.path.basename(path)] = path
+        root = ET.parse(path).getroot()
+        for el in root.iter():
+            def subst(v):
+                return re.sub(r"\$([A-Za-z0-9_]+)", lambda m: params.get(m.group(1), m.group(0)), v)
+            if el.tag == "default":
+                params.setdefault(el.get("name"), el.get("value"))
+            if el.tag == "include":
+                p = resolve(subst(el.get("filename")), search)
+                if p is None:
+                    sys.exit(f"include {el.get('filename')} not found")
+                stack.append(p)
+            if el.tag == "string" and el.get("name") == "filename":
+                name = subst(el.get("value"))
+                p = resolve(name, search)
+                if p is None:
+                    sys.exit(f"asset {name} not found in {search}")
+                out[os.path.basename(name)] = p
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scene")
+    ap.add_argument("--spp", type=int, default=4096, help="total samples per pixel")
+    ap.add_argument("--chunks", type=int, default=8, help="independent chunks (even, >= 2)")
+    ap.add_argument("--seed", type=int, default=1000, help="seed of the first chunk")
+    ap.add_argument("--variant", default=None, help="Mitsuba variant (default: llvm_ad_rgb if it works, else scalar_rgb)")
+    ap.add_argument("-a", dest="search", action="append", default=[], help="extra search folder")
+    ap.add_argument("-D", dest="defines", action="append", default=[], help="scene parameter name=value")
+    ap.add_argument("--out", default="reference")
+    ap.add_argument("--name", default=None, help="output name (default: the scene's stem)")
+    args = ap.parse_args()
+    if args.chunks < 2 or args.chunks % 2 or args.spp % args.chunks:
+        sys.exit("--chunks must be even and >= 2, and divide --spp")
+
+    import mitsuba as mi
+    import numpy as np
+
+    variant = args.variant
+    if variant is None:
+        variant = "scalar_rgb"
+        if "llvm_ad_rgb" in mi.variants():
+            try:
+                mi.set_variant("llvm_ad_rgb")
+                variant = "llvm_ad_rgb"
+            except Exception:
+                variant = "scalar_rgb"
+    mi.set_variant(variant)
+
+    params = dict(d.split("=", 1) for d in args.defines)
+    scene_dir = os.path.dirname(os.path.abspath(args.scene))
+    search = [scene_dir] + [os.path.abspath(a) for a in args.search]
+    for d in args.search:
+        mi.file_resolver().append(os.path.abspath(d))
+    scene = mi.load_file(args.scene, **params)
+
+    spp_chunk = args.spp // args.chunks
+    chunks = []
+    t0 = time.time()
+    for i in range(args.chunks):
+        img = mi.render(scene, spp=spp_chunk, seed=args.seed + i)
+        chunks.append(np.array(img, dtype=np.float64)[:, :, :3])
+        print(f"chunk {i + 1}/{args.chunks} done ({time.time() - t0:.1f} s)", flush=True)
+    seconds = time.time() - t0
+    stack = np.stack(chunks)
+    mean = stack.mean(axis=0)
+    var_mean = stack.var(axis=0, ddof=1) / args.chunks
+    half = args.chunks // 2
+
+    name = args.name or os.path.splitext(os.path.basename(args.scene))[0]
+    os.makedirs(args.out, exist_ok=True)
+
+    def write(suffix, arr):
+        mi.Bitmap(arr.astype(np.float32), pixel_format=mi.Bitmap.PixelFormat.RGB).write(
+            os.path.join(args.out, f"{name}{suffix}.exr"))
+
+    write("", mean)
+    write("_var", var_mean)
+    write("_half0", stack[:half].mean(axis=0))
+    write("_half1", stack[half:].mean(axis=0))
+
+    files = referenced_files(os.path.abspath(args.scene), search, dict(params))
+    meta = {
+        "scene": os.path.relpath(os.path.abspath(args.scene)),
+        "mitsuba_version": mi.__version__,
+        "variant": variant,
+        "spp": args.spp,
+        "chunks": args.chunks,
+        "spp_per_chunk": spp_chunk,
+        "seeds": [args.seed + i for i in range(args.chunks)],
+        "seconds": round(seconds, 3),
+        "samples_per_second": round(mean.shape[0] * mean.shape[1] * args.spp / seconds, 1),
+        "params": params,
+        "search": args.search,
+        "width": mean.shape[1],
+        "height": mean.shape[0],
+        "sha256": {k: sha256(v) for k, v in sorted(files.items())},
+        "made_by": "scripts/mitsuba_reference.py",
+        "date": datetime.date.today().isoformat(),
+    }
+    with open(os.path.join(args.out, f"{name}.json"), "w") as f:
+        json.dump(meta, f, indent=2)
+        f.write("\n")
+    print(f"wrote {args.out}/{name}.exr (+ _var, _half0, _half1, .json) in {seconds:.1f} s with {variant}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,128 @@
+//! Shared helpers for the integration tests: mesh search path, rendering independent
+//! chunks, and loading committed Mitsuba 3 references.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use mediareg::image::stats::Estimate;
+use mediareg::xml::LoadOptions;
+use mediareg::BuildOverrides;
+use sha2::{Digest, Sha256};
+
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Where the Stanford meshes are found: $MEDIAREG_MESHES, the cache that
+/// scripts/fetch_meshes fills, then ../shared/meshes.
+pub fn mesh_dirs() -> Vec<PathBuf> {
+    let mut dirs = Vec::new();
+    if let Ok(d) = std::env::var("MEDIAREG_MESHES") {
+        dirs.push(PathBuf::from(d));
+    }
+    dirs.push(root().join(".cache/meshes"));
+    dirs.push(root().join("../shared/meshes"));
+    dirs.into_iter().filter(|d| d.is_dir()).collect()
+}
+
+pub fn options(params: &[(&str, &str)]) -> LoadOptions {
+    LoadOptions {
+        params: params
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect(),
+        search_dirs: mesh_dirs(),
+    }
+}
+
+/// Renders `k` independent images (seeds base_seed..base_seed+k) of `spp` samples each.
+pub fn render_chunks(
+    scene: &Path,
+    params: &[(&str, &str)],
+    k: usize,
+    spp: u32,
+    base_seed: u64,
+) -> Vec<Vec<[f32; 3]>> {
+    (0..k)
+        .map(|i| {
+            let s = mediareg::load_scene(
+                scene,
+                &options(params),
+                &BuildOverrides {
+                    spp: Some(spp),
+                    seed: Some(base_seed + i as u64),
+                },
+            )
+            .unwrap_or_else(|e| panic!("{e}"));
+            mediareg::integrator::render(&s, false).0.pixels
+        })
+        .collect()
+}
+
+pub fn sha256_file(path: &Path) -> String {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    format!("{:x}", Sha256::digest(&bytes))
+}
+
+pub struct Reference {
+    pub estimate: Estimate,
+    pub json: serde_json::Value,
+}
+
+/// Loads reference/NAME.{exr,_var.exr,json} and fails if the scene or any asset no
+/// longer hashes to what the reference was made from.
+pub fn reference(name: &str, scene: &Path) -> Reference {
+    let dir = root().join("reference");
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join(format!("{name}.json"))).expect("reference json"),
+    )
+    .expect("valid json");
+    // Stale check: every file the scene reads must hash as recorded, and vice versa.
+    let params: Vec<(String, String)> = json["params"]
+        .as_object()
+        .map(|m| {
+            m.iter()
+                .map(|(k, v)| (k.clone(), v.as_str().unwrap_or_default().to_string()))
+                .collect()
+        })
+        .unwrap_or_default();
+    let opts = LoadOptions {
+        params,
+        search_dirs: mesh_dirs(),
+    };
+    let desc = mediareg::xml::load_file(scene, &opts).unwrap_or_else(|e| panic!("{e}"));
+    let recorded = json["sha256"].as_object().expect("sha256 map");
+    let mut seen = Vec::new();
+    for f in desc.referenced_files() {
+        let base = f.file_name().unwrap().to_string_lossy().into_owned();
+        let want = recorded.get(&base).and_then(|v| v.as_str()).unwrap_or_else(|| {
+            panic!("reference/{name}.json does not record {base}: the reference is stale, regenerate it with scripts/mitsuba_reference.py")
+        });
+        assert_eq!(
+            sha256_file(&f),
+            want,
+            "{} changed since reference/{name} was made: regenerate it with scripts/mitsuba_reference.py",
+            f.display()
+        );
+        seen.push(base);
+    }
+    for k in recorded.keys() {
+        assert!(
+            seen.contains(k),
+            "reference/{name}.json records {k}, which the scene no longer reads: stale reference"
+        );
+    }
+    let mean = mediareg::image::read_exr(&dir.join(format!("{name}.exr"))).expect("reference exr");
+    let var = mediareg::image::read_exr(&dir.join(format!("{name}_var.exr")))
+        .expect("reference variance exr");
+    let chunks = json["chunks"].as_u64().expect("chunks") as f64;
+    let to64 = |v: &[[f32; 3]]| v.iter().map(|p| p.map(|c| c as f64)).collect::<Vec<_>>();
+    Reference {
+        estimate: Estimate {
+            mean: to64(&mean.pixels),
+            var_mean: to64(&var.pixels),
+            dof: chunks - 1.0,
+        },
+        json,
+    }
+}
