@@ -27,7 +27,7 @@ use crate::xml::load::resolve_path;
 /// (`src/core/properties.cpp`, "A uniform spectrum does not produce a uniform RGB
 /// response in sRGB").
 pub const UNIFORM_SPECTRUM_RGB: Vec3 = Vec3::new(
-    3.240479 - 1.537150 - 0.498535,
+    3.240479 - 1.53715 - 0.498535,
     -0.969256 + 1.875991 + 0.041556,
     0.055648 - 0.204043 + 1.057311,
 );
@@ -386,12 +386,14 @@ impl Builder<'_> {
                 })?;
                 let face_normals = p.bool("face_normals", false)?;
                 let raw = if p.obj.plugin == "ply" {
-                    read_ply(&path)?
+                    read_ply(&path)
                 } else {
                     // Texture coordinates are not used by any supported BSDF.
                     p.bool("flip_tex_coords", true)?;
-                    read_obj(&path)?
-                };
+                    read_obj(&path)
+                }
+                // Name the scene line of the <shape> too, not only the mesh file.
+                .map_err(|e| SceneError::at(p.loc(), format!("{}: {e}", p.obj.label())))?;
                 Geometry::Mesh(TriangleMesh::new(
                     raw,
                     &to_mat4(to_world),

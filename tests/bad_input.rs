@@ -1,0 +1,160 @@
+//! Bad input through the real command line: each file in tests/bad_input/ must give a
+//! clear error naming the problem and where it is, a non-zero exit code, no panic and no
+//! output file.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn run_bad(file: &str, extra: &[&str]) -> (i32, String) {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/bad_input");
+    let out = std::env::temp_dir().join(format!("mediareg_bad_{}_{file}.exr", std::process::id()));
+    let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .arg("render")
+        .arg(dir.join(file))
+        .arg("-o")
+        .arg(&out)
+        .args(extra)
+        .output()
+        .expect("run mediareg");
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(
+        !stderr.contains("panicked"),
+        "{file}: mediareg panicked:\n{stderr}"
+    );
+    assert!(
+        !out.exists(),
+        "{file}: an output file was written despite the error"
+    );
+    (output.status.code().unwrap_or(-1), stderr)
+}
+
+/// Asserts a failing exit, and that stderr names `file:line` and each of `needles`.
+fn expect_error(file: &str, line: u32, needles: &[&str]) {
+    let (code, stderr) = run_bad(file, &[]);
+    assert_ne!(code, 0, "{file}: expected failure, got success");
+    let loc = format!("{file}:{line}:");
+    assert!(
+        stderr.contains(&loc),
+        "{file}: message does not name {loc}:\n{stderr}"
+    );
+    for n in needles {
+        assert!(
+            stderr.contains(n),
+            "{file}: message does not mention {n:?}:\n{stderr}"
+        );
+    }
+}
+
+#[test]
+fn malformed_xml() {
+    expect_error("malformed.xml", 8, &["malformed XML"]);
+}
+
+#[test]
+fn unclosed_tag() {
+    expect_error("unclosed_tag.xml", 8, &["malformed XML", "</shape>"]);
+}
+
+#[test]
+fn missing_mesh_file() {
+    expect_error(
+        "missing_mesh.xml",
+        7,
+        &["no_such_mesh.ply", "not found", "-a DIR"],
+    );
+}
+
+#[test]
+fn unknown_plugin() {
+    expect_error("unknown_plugin.xml", 6, &["teapot", "ply, obj, sphere"]);
+}
+
+#[test]
+fn misspelled_property() {
+    expect_error(
+        "misspelled_property.xml",
+        7,
+        &["unreferenced property \"raduis\"", "radius"],
+    );
+}
+
+#[test]
+fn wrong_property_type() {
+    expect_error(
+        "wrong_property_type.xml",
+        7,
+        &["radius", "<float>", "<string>"],
+    );
+}
+
+#[test]
+fn nan_sigma_t() {
+    expect_error("nan_sigma_t.xml", 7, &["NaN", "not a finite number"]);
+}
+
+#[test]
+fn negative_sigma_t() {
+    expect_error("negative_sigma_t.xml", 7, &["sigma_t", "nonnegative"]);
+}
+
+#[test]
+fn truncated_ply() {
+    expect_error("truncated_ply.xml", 6, &["truncated.ply", "PLY"]);
+}
+
+#[test]
+fn obj_with_out_of_range_indices() {
+    expect_error(
+        "obj_bad_indices.xml",
+        6,
+        &["bad_indices.obj", "out of bounds"],
+    );
+}
+
+#[test]
+fn undefined_parameter() {
+    expect_error("undefined_parameter.xml", 7, &["$size", "-D size="]);
+}
+
+#[test]
+fn unused_define_is_an_error() {
+    let (code, stderr) = run_bad("undefined_parameter.xml", &["-D", "size=1", "-D", "sise=2"]);
+    assert_ne!(code, 0);
+    assert!(stderr.contains("\"sise\""), "{stderr}");
+}
+
+#[test]
+fn media_are_refused_until_volpath_lands() {
+    let dir = std::env::temp_dir().join(format!("mediareg_medium_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("medium.xml");
+    std::fs::write(
+        &scene,
+        r#"<scene version="3.0.0">
+    <sensor type="perspective"><float name="fov" value="40"/>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+    </sensor>
+    <medium type="homogeneous" id="m"><float name="sigma_t" value="10"/>
+        <phase type="hg"><float name="g" value="0.7"/></phase></medium>
+    <shape type="sphere"><bsdf type="null"/><ref name="interior" id="m"/></shape>
+</scene>"#,
+    )
+    .unwrap();
+    let out = dir.join("medium.exr");
+    let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(
+        stderr.contains("medium.xml:5:5") && stderr.contains("not yet supported"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}
