@@ -18,7 +18,12 @@ const ALPHA: f64 = 1e-3;
 const FALSE_ALARM: f64 = 1e-6;
 
 fn check(name: &str, params: &[(&str, &str)], seed: u64) -> Comparison {
-    let scene = root().join("mitsuba_scenes").join(format!("{name}.xml"));
+    check_scene(name, name, params, seed)
+}
+
+/// `name` is the reference, `scene` the file in mitsuba_scenes/ it was made from.
+fn check_scene(name: &str, scene: &str, params: &[(&str, &str)], seed: u64) -> Comparison {
+    let scene = root().join("mitsuba_scenes").join(format!("{scene}.xml"));
     let r = reference(name, &scene);
     let ours = Estimate::from_chunks(&render_chunks(&scene, params, CHUNKS, SPP, seed));
     let c = compare(&ours, &r.estimate, ALPHA, FALSE_ALARM);
@@ -29,6 +34,13 @@ fn check(name: &str, params: &[(&str, &str)], seed: u64) -> Comparison {
 #[test]
 fn cbox_matches_mitsuba() {
     let c = check("cbox", &[], 1);
+    assert!(c.passed, "{c}");
+}
+
+/// hdrfilm's default filter: each sample splatted over the pixels within radius 2.
+#[test]
+fn cbox_gaussian_filter_matches_mitsuba() {
+    let c = check_scene("cbox_gaussian", "cbox", &[("filter", "gaussian")], 7);
     assert!(c.passed, "{c}");
 }
 
