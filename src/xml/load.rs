@@ -531,10 +531,17 @@ impl Loader {
                     check_attrs(op, &attrs, &["value"])?;
                     let v = required(op, &attrs, "value")?;
                     let list = parse_list(&v, loc)?;
-                    let arr: [f64; 16] = list.as_slice().try_into().map_err(|_| {
-                        SceneError::at(loc, format!("<matrix> needs 16 values, got {}", list.len()))
-                    })?;
-                    transform::matrix_row_major(&arr)
+                    if let Ok(arr) = <[f64; 9]>::try_from(list.as_slice()) {
+                        transform::matrix3_row_major(&arr)
+                    } else {
+                        let arr: [f64; 16] = list.as_slice().try_into().map_err(|_| {
+                            SceneError::at(
+                                loc,
+                                format!("<matrix> needs 16 (or 9) values, got {}", list.len()),
+                            )
+                        })?;
+                        transform::matrix_row_major(&arr)
+                    }
                 }
                 "lookat" => {
                     check_attrs(op, &attrs, &["origin", "target", "up"])?;
@@ -544,9 +551,14 @@ impl Loader {
                     };
                     let origin = get("origin")?;
                     let target = get("target")?;
+                    // Mitsuba: a missing or zero up is generated from the view direction.
                     let up = match attrs.iter().find(|(k, _)| k == "up") {
                         Some(_) => get("up")?,
-                        None => DVec3::Y,
+                        None => DVec3::ZERO,
+                    };
+                    let up = match (up == DVec3::ZERO, (target - origin).try_normalize()) {
+                        (true, Some(dir)) => transform::default_up(dir),
+                        _ => up,
                     };
                     transform::look_at(origin, target, up).ok_or_else(|| {
                         SceneError::at(

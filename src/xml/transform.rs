@@ -52,6 +52,20 @@ pub fn matrix_row_major(v: &[f64; 16]) -> DMat4 {
     DMat4::from_cols_array(v).transpose()
 }
 
+/// `<matrix value="..."/>` with 9 values: a 3×3 linear part, row by row.
+pub fn matrix3_row_major(v: &[f64; 9]) -> DMat4 {
+    DMat4::from_mat3(glam::DMat3::from_cols_array(v).transpose())
+}
+
+/// The default `up` of `<lookat>` when none (or zero) is given: the first tangent of
+/// Mitsuba's `coordinate_system(dir)` (Duff et al. 2017).
+pub fn default_up(dir: DVec3) -> DVec3 {
+    let sign = 1f64.copysign(dir.z);
+    let a = -1.0 / (sign + dir.z);
+    let b = dir.x * dir.y * a;
+    DVec3::new(1.0 + sign * dir.x * dir.x * a, sign * b, -sign * dir.x)
+}
+
 /// `<lookat origin target up/>`: Mitsuba's `Transform4f::look_at`. Columns are
 /// (left, up', dir, origin) with `dir = ‖target − origin‖`, `left = ‖up × dir‖`,
 /// `up' = dir × left`. Returns `None` when the frame is degenerate (up ∥ dir or
