@@ -158,3 +158,30 @@ fn media_are_refused_until_volpath_lands() {
     );
     assert!(!out.exists());
 }
+
+#[test]
+fn film_too_large_for_memory_is_refused_up_front() {
+    expect_error("huge_film.xml", 1, &["32768 x 32768", "GiB", "limit"]);
+}
+
+#[test]
+fn output_folder_missing() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("mitsuba_scenes/cbox.xml");
+    let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .args([
+            "render",
+            dir.to_str().unwrap(),
+            "--spp",
+            "1",
+            "-o",
+            "/nonexistent_mediareg_dir/out.exr",
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(
+        stderr.contains("/nonexistent_mediareg_dir") && stderr.contains("does not exist"),
+        "{stderr}"
+    );
+}

@@ -296,6 +296,17 @@ impl Builder<'_> {
                 "crop window ({cx}, {cy}) + ({cw} x {ch}) does not fit the {width} x {height} film"
             )));
         }
+        // The accumulation buffer holds 16 bytes per pixel (RGB sum + weight): refuse
+        // up front what would not fit rather than abort on allocation.
+        const MAX_PIXELS: i64 = 1 << 27;
+        if cw * ch > MAX_PIXELS {
+            return Err(p.error(format!(
+                "film (crop) size {cw} x {ch} = {} pixels needs {:.1} GiB to accumulate; the limit is {MAX_PIXELS} pixels",
+                cw * ch,
+                (cw * ch * 16) as f64 / (1u64 << 30) as f64
+            ))
+            .with_hint("render a smaller film, or a crop window of it"));
+        }
         let pixel_format = p.string("pixel_format", "rgb")?.to_ascii_lowercase();
         if pixel_format != "rgb" {
             return Err(p.error(format!(
