@@ -101,7 +101,7 @@ impl Emitter {
                 })
             }
             Emitter::Constant { radiance } => {
-                let d = square_to_uniform_sphere(Vec2::new(s.x, s.y));
+                let d = square_to_uniform_sphere(s);
                 let r = bsphere.radius.max((p_ref - bsphere.center).length());
                 let pdf = 1.0 / (4.0 * PI);
                 Some(EmitterSample {
@@ -125,6 +125,17 @@ impl Emitter {
                     delta: true,
                 })
             }
+        }
+    }
+
+    /// Radiance reaching a ray travelling along `d` that ends on this emitter: on an area
+    /// light with (shading) normal `n`, only from its front side; for the environment,
+    /// from every direction (`n` unused). Dirac lights are never hit.
+    pub fn eval(&self, n: Vec3A, d: Vec3A) -> Vec3 {
+        match self {
+            Emitter::Area { radiance, .. } if n.dot(-d) > 0.0 => *radiance,
+            Emitter::Constant { radiance } => *radiance,
+            _ => Vec3::ZERO,
         }
     }
 

@@ -84,44 +84,28 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         };
         if let Some(ei) = emitter {
             let e = &scene.emitters[ei as usize];
-            let (le, em_pdf) = match (&si, e) {
-                (Some(h), crate::emitter::Emitter::Area { radiance, .. }) => {
-                    let cos = h.sh_frame.n.dot(-ray_d);
-                    let le = if cos > 0.0 { *radiance } else { Vec3::ZERO };
-                    let pdf = if prev.delta {
-                        0.0
-                    } else {
-                        e.pdf_direction(prev.p, h.p, h.sh_frame.n, ray_d, &scene.geometries)
-                            / n_emitters
-                    };
-                    (le, pdf)
-                }
-                (None, crate::emitter::Emitter::Constant { radiance }) => {
-                    let pdf = if prev.delta {
-                        0.0
-                    } else {
-                        e.pdf_direction(prev.p, prev.p, Vec3A::ZERO, ray_d, &scene.geometries)
-                            / n_emitters
-                    };
-                    (*radiance, pdf)
-                }
-                _ => (Vec3::ZERO, 0.0),
+            // Where the ray ended: a surface point and its normal, or (environment) none.
+            let (p_end, n_end) = si.map_or((prev.p, Vec3A::ZERO), |h| (h.p, h.sh_frame.n));
+            let le = e.eval(n_end, ray_d);
+            // After a Dirac bounce emitter sampling could not have produced this path.
+            let em_pdf = if prev.delta {
+                0.0
+            } else {
+                e.pdf_direction(prev.p, p_end, n_end, ray_d, &scene.geometries) / n_emitters
             };
             result += throughput * le * mis_weight(prev.bsdf_pdf, em_pdf);
         }
 
-        let Some(h) = si else {
-            if emitter.is_some() && !s.hide_emitters {
-                valid_ray = true;
+        let h = match si {
+            Some(h) if depth.saturating_add(1) < s.max_depth => h,
+            _ => {
+                // The path ends here; what it saw counts unless emitters are hidden.
+                if emitter.is_some() && !s.hide_emitters {
+                    valid_ray = true;
+                }
+                break;
             }
-            break;
         };
-        if depth.saturating_add(1) >= s.max_depth {
-            if emitter.is_some() && !s.hide_emitters {
-                valid_ray = true;
-            }
-            break;
-        }
         let info = &scene.shapes[h.shape as usize];
         let bsdf = &scene.bsdfs[info.bsdf as usize];
         let wi = h.sh_frame.to_local(-ray_d);
