@@ -32,7 +32,7 @@ pub struct RenderStats {
     pub invalid_samples: u64,
 }
 
-/// Renders `scene` with `spp` samples per pixel (overriding the scene's) and `seed`.
+/// Renders `scene` at its `spp` and `seed` (the CLI overrides both through `BuildOverrides`).
 pub fn render(scene: &Scene, show_progress: bool) -> (Image, RenderStats) {
     let film = &scene.film;
     let (cw, ch) = film.crop_size;
