@@ -19,7 +19,7 @@ use crate::geometry::mesh::{cube, read_obj, read_ply, TriangleMesh};
 use crate::geometry::shape::{Geometry, Planar, Sphere};
 use crate::geometry::RAY_EPSILON;
 use crate::medium::{HomogeneousMedium, Phase};
-use crate::xml::description::{ObjId, ObjectKind, SceneDescription};
+use crate::xml::description::{ObjId, ObjectKind, SceneDescription, Value};
 use crate::xml::load::resolve_path;
 
 /// Mitsuba's `xyz_to_srgb` applied to XYZ = (1, 1, 1): in RGB mode a constant
@@ -150,7 +150,6 @@ fn to_mat4(m: DMat4) -> Mat4 {
 /// A color for an emitter: float and rgb as given, a constant spectrum as Mitsuba's RGB
 /// mode converts it (see `UNIFORM_SPECTRUM_RGB`).
 fn emissive(p: &Props, name: &str) -> Result<Vec3> {
-    use crate::xml::description::Value;
     let is_spectrum = p
         .obj
         .props
@@ -642,6 +641,17 @@ impl Builder<'_> {
             return Err(p.error(format!("albedo {albedo} must be in [0, 1]")));
         }
         let sigma_t = p.color_nonneg("sigma_t", Vec3::ONE)?;
+        // Mitsuba 3 turns an `<rgb>` sigma_t into a bounded sRGB texture, which refuses
+        // components above 1; give the same file the same meaning (an error).
+        if let Some((Value::Rgb(c), loc)) = p.get("sigma_t") {
+            if c.max_element() > 1.0 {
+                return Err(SceneError::at(
+                    loc,
+                    format!("homogeneous medium: <rgb name=\"sigma_t\"> = {c} has a component above 1, which Mitsuba 3 refuses (it reads <rgb> here as a reflectance)"),
+                )
+                .with_hint("write the colour with components in [0, 1] and put the magnitude in <float name=\"scale\">, or use a <float> sigma_t"));
+            }
+        }
         let scale = p.float("scale", 1.0)?;
         if scale <= 0.0 {
             return Err(p.error(format!("scale = {scale}: must be > 0")));
@@ -685,7 +695,6 @@ impl Builder<'_> {
 
 /// An index of refraction: a number, or one of Mitsuba's named materials.
 fn ior(p: &Props, name: &str, default: &str) -> Result<f64> {
-    use crate::xml::description::Value;
     let given = p.obj.props.iter().find(|q| q.name == name);
     let v = match given.map(|q| &q.value) {
         Some(Value::String(_)) | None => {

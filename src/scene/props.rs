@@ -40,7 +40,7 @@ impl<'a> Props<'a> {
         )
     }
 
-    fn get(&self, name: &str) -> Option<(&'a Value, &'a Loc)> {
+    pub(crate) fn get(&self, name: &str) -> Option<(&'a Value, &'a Loc)> {
         let i = self.obj.props.iter().position(|p| p.name == name)?;
         self.used_props.borrow_mut()[i] = true;
         let p = &self.obj.props[i];

@@ -47,9 +47,16 @@ pub fn rotate(axis: DVec3, angle_deg: f64) -> DMat4 {
     DMat4::from_cols(r0, r1, r2, DVec4::W).transpose()
 }
 
-/// `<matrix value="m00 m01 ... m33"/>`: 16 values, row by row.
+/// `<matrix value="m00 m01 ... m33"/>`: 16 values, row by row. Mitsuba 3 stores
+/// transforms as affine (`AffineTransform4d`), so the bottom row is dropped and taken
+/// as (0, 0, 0, 1) — a projective row in a scene file has no effect there either.
 pub fn matrix_row_major(v: &[f64; 16]) -> DMat4 {
-    DMat4::from_cols_array(v).transpose()
+    let mut m = DMat4::from_cols_array(v).transpose();
+    m.x_axis.w = 0.0;
+    m.y_axis.w = 0.0;
+    m.z_axis.w = 0.0;
+    m.w_axis.w = 1.0;
+    m
 }
 
 /// `<matrix value="..."/>` with 9 values: a 3×3 linear part, row by row.
