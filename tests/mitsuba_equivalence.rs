@@ -9,13 +9,11 @@
 
 mod common;
 
-use common::{reference, render_chunks, root};
-use mediareg::image::stats::{compare, Comparison, Estimate};
+use common::check_against_reference;
+use mediareg::image::stats::Comparison;
 
 const CHUNKS: usize = 8;
 const SPP: u32 = 64;
-const ALPHA: f64 = 1e-3;
-const FALSE_ALARM: f64 = 1e-6;
 
 fn check(name: &str, params: &[(&str, &str)], seed: u64) -> Comparison {
     check_scene(name, name, params, seed)
@@ -23,12 +21,7 @@ fn check(name: &str, params: &[(&str, &str)], seed: u64) -> Comparison {
 
 /// `name` is the reference, `scene` the file in mitsuba_scenes/ it was made from.
 fn check_scene(name: &str, scene: &str, params: &[(&str, &str)], seed: u64) -> Comparison {
-    let scene = root().join("mitsuba_scenes").join(format!("{scene}.xml"));
-    let r = reference(name, &scene);
-    let ours = Estimate::from_chunks(&render_chunks(&scene, params, CHUNKS, SPP, seed));
-    let c = compare(&ours, &r.estimate, ALPHA, FALSE_ALARM);
-    println!("{name} {params:?}: {c}");
-    c
+    check_against_reference(name, scene, params, CHUNKS, SPP, seed)
 }
 
 #[test]

@@ -57,6 +57,25 @@ impl Emitter {
         match self {
             Emitter::Area { shape, radiance } => {
                 let g = &shapes[*shape as usize];
+                // Spheres seen from outside: sample the cone of the visible cap.
+                if let Geometry::Sphere(sp) = g {
+                    if let Some((p, n, pdf)) = sp.sample_cone(p_ref, s) {
+                        let n = if sp.flip_normals { -n } else { n };
+                        let v = p - p_ref;
+                        let dist = v.length();
+                        let d = v / dist;
+                        if !(dist > 0.0) || n.dot(d) >= 0.0 || !pdf.is_finite() {
+                            return None;
+                        }
+                        return Some(EmitterSample {
+                            d,
+                            p,
+                            pdf,
+                            weight: *radiance / pdf,
+                            delta: false,
+                        });
+                    }
+                }
                 let (p, n) = g.sample_position(s);
                 let v = p - p_ref;
                 let dist2 = v.length_squared();
@@ -154,6 +173,11 @@ impl Emitter {
                 let cos = n.dot(d);
                 if cos >= 0.0 {
                     return 0.0;
+                }
+                if let Geometry::Sphere(sp) = &shapes[*shape as usize] {
+                    if let Some(pdf) = sp.cone_pdf(p_ref) {
+                        return pdf;
+                    }
                 }
                 let dist2 = (p - p_ref).length_squared();
                 let pdf = dist2 / (shapes[*shape as usize].area() * -cos);

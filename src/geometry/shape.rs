@@ -116,6 +116,12 @@ pub fn square_to_uniform_disk_concentric(s: Vec2) -> (f32, f32) {
     (r * c, r * s)
 }
 
+/// Uniform pdf over a cone of half-angle θ_max.
+#[inline]
+fn cone_pdf(cos_max: f32) -> f32 {
+    1.0 / (2.0 * std::f32::consts::PI * (1.0 - cos_max))
+}
+
 pub fn square_to_uniform_sphere(s: Vec2) -> Vec3A {
     let z = 1.0 - 2.0 * s.y;
     let r = (1.0 - z * z).max(0.0).sqrt();
@@ -167,6 +173,51 @@ impl Sphere {
         4.0 * std::f32::consts::PI * self.radius * self.radius
     }
 
+    /// cos of the half-angle of the cone the sphere fills as seen from `p`, or `None`
+    /// when `p` is inside (or on) the sphere.
+    #[inline]
+    fn cone_cos_max(&self, p: Vec3A) -> Option<(f32, f32)> {
+        let dc2 = (self.center - p).length_squared();
+        // Mitsuba shrinks the radius by RayEpsilon so points on the surface count as inside.
+        let r_adj = self.radius * (1.0 - super::RAY_EPSILON);
+        if dc2 <= r_adj * r_adj {
+            return None;
+        }
+        let sin2 = self.radius * self.radius / dc2;
+        Some(((1.0 - sin2).max(0.0).sqrt(), sin2))
+    }
+
+    /// Mitsuba's `Sphere::sample_direction` from outside: a direction uniform in the cone
+    /// of the visible cap (pdf `1 / (2π (1 − cos θ_max))`), and the point it hits.
+    /// Returns (point, outward normal, solid-angle pdf), or `None` from inside.
+    pub fn sample_cone(&self, p_ref: Vec3A, s: Vec2) -> Option<(Vec3A, Vec3A, f32)> {
+        let (cos_max, sin2_max) = self.cone_cos_max(p_ref)?;
+        let dc = self.center - p_ref;
+        // Small cones: Taylor expansion avoids cancellation in 1 − cos² (Mitsuba, 1.5°).
+        let sin2 = if sin2_max > 0.000_685_23 {
+            let c = (cos_max - 1.0) * s.x + 1.0;
+            1.0 - c * c
+        } else {
+            sin2_max * s.x
+        };
+        let cos_t = (1.0 - sin2).max(0.0).sqrt();
+        // The angle at the centre between −dc and the hit point (akalin.com, visible sphere).
+        let inv_sin_max = 1.0 / sin2_max.sqrt();
+        let cos_a = sin2 * inv_sin_max + cos_t * (1.0 - sin2 * inv_sin_max * inv_sin_max).max(0.0).sqrt();
+        let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
+        let (sp, cp) = (2.0 * std::f32::consts::PI * s.y).sin_cos();
+        let local = Vec3A::new(cp * sin_a, sp * sin_a, cos_a);
+        let n = super::Frame::new(-dc.normalize()).to_world(local);
+        let p = self.center + n * self.radius;
+        Some((p, n, cone_pdf(cos_max)))
+    }
+
+    /// The pdf `sample_cone` gives any direction toward the sphere from `p_ref`, or `None`
+    /// from inside.
+    pub fn cone_pdf(&self, p_ref: Vec3A) -> Option<f32> {
+        self.cone_cos_max(p_ref).map(|(c, _)| cone_pdf(c))
+    }
+
     pub fn bounds(&self) -> Bounds {
         Bounds {
             min: self.center - Vec3A::splat(self.radius),
@@ -194,5 +245,43 @@ impl Geometry {
             }
             Geometry::Planar(pl) => (pl.sample_position(s), pl.normal),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Cone samples hit the sphere where they say, and are uniform in the cone:
+    /// the mean of cos(angle to the axis) is (1 + cos θ_max) / 2.
+    #[test]
+    fn sphere_cone_sampling_is_uniform_in_the_visible_cone() {
+        let sp = Sphere {
+            center: Vec3A::new(0.3, -0.2, 0.5),
+            radius: 0.7,
+            flip_normals: false,
+        };
+        for p_ref in [Vec3A::new(0.0, 0.0, 4.0), Vec3A::new(1.2, 0.1, 0.4), Vec3A::new(40.0, 3.0, -9.0)] {
+            let axis = (sp.center - p_ref).normalize();
+            let cos_max = (1.0 - sp.radius * sp.radius / (sp.center - p_ref).length_squared()).sqrt();
+            let n = 200;
+            let mut mean = 0.0f64;
+            for i in 0..n {
+                for j in 0..n {
+                    let s = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                    let (p, nrm, pdf) = sp.sample_cone(p_ref, s).unwrap();
+                    let d = (p - p_ref).normalize();
+                    let t = sp.intersect(p_ref, d, f32::MAX).expect("the sample must hit");
+                    assert!((t - (p - p_ref).length()).abs() < 1e-3 * t, "hit at {t}");
+                    assert!(nrm.dot(d) < 1e-3, "a visible point faces the reference");
+                    assert!((pdf - sp.cone_pdf(p_ref).unwrap()).abs() < 1e-3 * pdf);
+                    mean += d.dot(axis) as f64;
+                }
+            }
+            mean /= (n * n) as f64;
+            let want = (1.0 + cos_max as f64) / 2.0;
+            assert!((mean - want).abs() < 1e-4, "{mean} vs {want}");
+        }
+        assert!(sp.cone_pdf(sp.center).is_none(), "inside: no cone");
     }
 }

@@ -4,13 +4,14 @@
 
 pub mod path;
 pub mod sampler;
+pub mod volpath;
 
 use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::scene::film::ImageBlock;
-use crate::scene::Scene;
+use crate::scene::{IntegratorKind, Scene};
 use sampler::Pcg32;
 
 const BLOCK: usize = 32;
@@ -39,6 +40,10 @@ pub fn render(scene: &Scene, show_progress: bool) -> (Image, RenderStats) {
     let (ox, oy) = film.crop_offset;
     let border = film.rfilter.border();
     let spp = scene.spp;
+    let sample_fn = match scene.integrator.kind {
+        IntegratorKind::Path => path::sample,
+        IntegratorKind::Volpath => volpath::sample,
+    };
 
     let mut tiles = Vec::new();
     for ty in (0..ch).step_by(BLOCK) {
@@ -74,7 +79,7 @@ pub fn render(scene: &Scene, show_progress: bool) -> (Image, RenderStats) {
                         let u = rng.next_2d();
                         let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
                         let ray = scene.camera.sample_ray(pos);
-                        let mut l = path::sample(scene, ray.o, ray.d, ray.tmax, &mut rng);
+                        let mut l = sample_fn(scene, ray.o, ray.d, ray.tmax, &mut rng);
                         if !l.is_finite() {
                             invalid += 1;
                             l = Vec3::ZERO;

@@ -1,17 +1,17 @@
-//! Participating media: Mitsuba 3's `homogeneous` medium with `hg` or `isotropic` phase.
-//! Parsed and validated now; rendered by `volpath` (next milestone).
+//! Participating media: Mitsuba 3's `homogeneous` medium (`src/media/homogeneous.cpp`)
+//! with the `hg` or `isotropic` phase function (`src/phase/hg.cpp`).
+//!
+//! Free-flight distances are sampled from σ_t of one colour channel (Mitsuba's
+//! `Medium::sample_interaction`), never from the albedo: `t = −ln(1 − u) / σ_t[c]`,
+//! with pdf `σ_t[c] e^{−σ_t[c] t}` for a collision at `t` and `e^{−σ_t[c] s}` for passing
+//! a whole segment of length `s`. Transmittance along a segment is `e^{−σ_t s}` per
+//! channel (Beer–Lambert).
+
+pub mod phase;
 
 use glam::Vec3;
 
-#[derive(Clone, Debug, PartialEq)]
-pub enum Phase {
-    Isotropic,
-    /// Henyey–Greenstein with asymmetry `g` ∈ (−1, 1) (Mitsuba's sign convention:
-    /// g > 0 scatters forward).
-    HenyeyGreenstein {
-        g: f32,
-    },
-}
+pub use phase::Phase;
 
 #[derive(Clone, Debug)]
 pub struct HomogeneousMedium {
@@ -20,5 +20,67 @@ pub struct HomogeneousMedium {
     /// Extinction σ_t (already multiplied by `scale`), per channel, ≥ 0.
     pub sigma_t: Vec3,
     pub phase: Phase,
+    /// Next-event estimation at scattering vertices in this medium (Mitsuba's
+    /// `sample_emitters`, default true).
     pub sample_emitters: bool,
+}
+
+impl HomogeneousMedium {
+    /// Scattering coefficient σ_s = albedo · σ_t.
+    #[inline]
+    pub fn sigma_s(&self) -> Vec3 {
+        self.albedo * self.sigma_t
+    }
+
+    /// A free-flight distance sampled with the extinction of `channel` (∞ where that
+    /// extinction is 0: the ray never collides).
+    #[inline]
+    pub fn sample_distance(&self, channel: usize, u: f32) -> f32 {
+        let s = self.sigma_t[channel];
+        if s > 0.0 {
+            // ln_1p(−u) = ln(1 − u), accurate for small u; u < 1 so t is finite.
+            -(-u).ln_1p() / s
+        } else {
+            f32::INFINITY
+        }
+    }
+
+    /// Beer–Lambert transmittance over a length `t` (t may be ∞: 0 where σ_t > 0,
+    /// 1 where σ_t = 0).
+    #[inline]
+    pub fn transmittance(&self, t: f32) -> Vec3 {
+        transmittance(self.sigma_t, t)
+    }
+}
+
+/// `e^{−σ t}` per channel, with `0 · ∞ = 0` (no extinction, no attenuation).
+#[inline]
+pub fn transmittance(sigma_t: Vec3, t: f32) -> Vec3 {
+    let f = |s: f32| if s > 0.0 { (-s * t).exp() } else { 1.0 };
+    Vec3::new(f(sigma_t.x), f(sigma_t.y), f(sigma_t.z))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn free_flight_mean_is_one_over_sigma_t() {
+        let m = HomogeneousMedium {
+            albedo: Vec3::splat(0.5),
+            sigma_t: Vec3::new(2.0, 5.0, 0.0),
+            phase: Phase::Isotropic,
+            sample_emitters: true,
+        };
+        let n = 200_000;
+        for (c, want) in [(0, 0.5f64), (1, 0.2)] {
+            let mean = (0..n)
+                .map(|i| m.sample_distance(c, (i as f32 + 0.5) / n as f32) as f64)
+                .sum::<f64>()
+                / n as f64;
+            assert!((mean - want).abs() < 2e-3 * want, "channel {c}: {mean}");
+        }
+        assert_eq!(m.sample_distance(2, 0.3), f32::INFINITY);
+        assert_eq!(m.transmittance(f32::INFINITY), Vec3::new(0.0, 0.0, 1.0));
+    }
 }

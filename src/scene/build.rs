@@ -255,7 +255,7 @@ impl Builder<'_> {
             p.float("principal_point_offset_y", 0.0)? as f32,
         );
         let to_world = p.transform("to_world")?;
-        let medium = match p.named_child_of("medium", ObjectKind::Medium)? {
+        let medium = match p.child_of(ObjectKind::Medium)? {
             Some(c) => Some(self.medium(c.object)?),
             None => None,
         };
@@ -657,8 +657,17 @@ impl Builder<'_> {
             return Err(p.error(format!("scale = {scale}: must be > 0")));
         }
         let sample_emitters = p.bool("sample_emitters", true)?;
-        // Mitsuba's flag for RGB sigma_t; RGB extinction is always handled here.
-        p.bool("has_spectral_extinction", true)?;
+        // Mitsuba's flag for RGB sigma_t. With `false` Mitsuba weights scattering by the
+        // albedo alone, which is exact only for grey extinction: for a chromatic sigma_t
+        // it renders a biased image, which mediareg will not reproduce silently.
+        if !p.bool("has_spectral_extinction", true)? && sigma_t.min_element() != sigma_t.max_element() {
+            let loc = p.get("has_spectral_extinction").map_or(p.obj.loc.clone(), |(_, l)| l.clone());
+            return Err(SceneError::at(
+                &loc,
+                format!("homogeneous medium: has_spectral_extinction = false with a chromatic sigma_t {sigma_t} is not supported (Mitsuba 3 renders it with a biased estimator)"),
+            )
+            .with_hint("remove has_spectral_extinction (default true), or give a grey sigma_t"));
+        }
         let phase = match p.child_of(ObjectKind::Phase)? {
             Some(c) => {
                 let q = Props::new(self.desc, c.object);

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use mediareg::image::stats::Estimate;
+use mediareg::image::stats::{compare, Comparison, Estimate};
 use mediareg::xml::LoadOptions;
 use mediareg::BuildOverrides;
 use sha2::{Digest, Sha256};
@@ -125,4 +125,35 @@ pub fn reference(name: &str, scene: &Path) -> Reference {
         },
         json,
     }
+}
+
+/// Per-value outlier level and whole-test false-alarm probability of the comparisons.
+pub const ALPHA: f64 = 1e-3;
+pub const FALSE_ALARM: f64 = 1e-6;
+
+/// Whether the scene's pixels are independent (box filter), and then the image width:
+/// what `compare` needs to run its block and global checks.
+pub fn independent_width(scene: &Path, params: &[(&str, &str)]) -> Option<usize> {
+    let s = mediareg::load_scene(scene, &options(params), &BuildOverrides::default())
+        .unwrap_or_else(|e| panic!("{e}"));
+    matches!(s.film.rfilter, mediareg::scene::film::Rfilter::Box).then_some(s.film.crop_size.0)
+}
+
+/// Renders mitsuba_scenes/`scene`.xml as `chunks` independent images of `spp` samples
+/// and compares their mean with the committed reference `name`.
+pub fn check_against_reference(
+    name: &str,
+    scene: &str,
+    params: &[(&str, &str)],
+    chunks: usize,
+    spp: u32,
+    seed: u64,
+) -> Comparison {
+    let scene = root().join("mitsuba_scenes").join(format!("{scene}.xml"));
+    let r = reference(name, &scene);
+    let ours = Estimate::from_chunks(&render_chunks(&scene, params, chunks, spp, seed));
+    let width = independent_width(&scene, params);
+    let c = compare(&ours, &r.estimate, width, ALPHA, FALSE_ALARM);
+    println!("{name} {params:?}: {c}");
+    c
 }

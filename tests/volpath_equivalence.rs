@@ -1,0 +1,130 @@
+//! mediareg's `volpath` vs. the committed Mitsuba 3 `volpath` references of the same XML
+//! (reference/*.json says how each was made: llvm_ad_rgb, 8192 spp in 8 chunks).
+//!
+//! The comparison is the one of tests/mitsuba_equivalence.rs: 8 independent mediareg
+//! renders give a per-pixel mean and variance of the mean; a global bias of the image
+//! mean (z beyond the normal quantile at 1e-6 / 6) or more |z| > t₇(α = 1e-3) outliers
+//! than Binomial(N, 1e-3) allows at 1e-6 fails. So two renders of the same image fail
+//! with probability below 1e-6, and the power tests below show that a 1% change of the
+//! albedo, a negated g and a 5% change of sigma_t do fail.
+
+mod common;
+
+use common::{
+    check_against_reference, independent_width, render_chunks, root, ALPHA, FALSE_ALARM,
+};
+use mediareg::image::stats::{compare, Comparison, Estimate};
+
+const CHUNKS: usize = 8;
+const SPP: u32 = 64;
+
+fn check(name: &str, params: &[(&str, &str)], seed: u64) -> Comparison {
+    check_against_reference(name, name, params, CHUNKS, SPP, seed)
+}
+
+/// sigma_t 10, albedo 0.95, g 0.7 behind a null boundary; area light.
+#[test]
+fn medium_cube_matches_mitsuba() {
+    let c = check("medium_cube", &[], 11);
+    assert!(c.passed, "{c}");
+}
+
+/// RGB sigma_t and albedo: mediareg weights by the path pdf averaged over channels,
+/// Mitsuba by the pdf of one channel; both are unbiased, so the images must agree.
+#[test]
+fn chromatic_sphere_matches_mitsuba() {
+    let c = check("chromatic_sphere", &[], 12);
+    assert!(c.passed, "{c}");
+}
+
+#[test]
+fn medium_in_dielectric_matches_mitsuba() {
+    let c = check("medium_in_dielectric", &[], 13);
+    assert!(c.passed, "{c}");
+}
+
+/// max_depth 3, rr_depth 1, hide_emitters, a directional light and a hidden sky.
+#[test]
+fn max_depth_directional_matches_mitsuba() {
+    let c = check("max_depth_directional", &[], 14);
+    assert!(c.passed, "{c}");
+}
+
+/// Depth is counted as Mitsuba counts it: max_depth 2 renders another image (less
+/// light) and must not match the max_depth 3 reference.
+#[test]
+fn max_depth_is_detected() {
+    let c = check_against_reference(
+        "max_depth_directional",
+        "max_depth_directional",
+        &[("max_depth", "2")],
+        CHUNKS,
+        SPP,
+        15,
+    );
+    assert!(!c.passed, "max_depth 2 vs 3 went undetected: {c}");
+}
+
+/// The sensor sits in a fog (sensor `medium`).
+#[test]
+fn camera_in_medium_matches_mitsuba() {
+    let c = check("camera_in_medium", &[], 16);
+    assert!(c.passed, "{c}");
+}
+
+/// A medium bounded by a closed triangle mesh (the watertight Bunny).
+#[test]
+fn bunny_medium_matches_mitsuba() {
+    let c = check("bunny_medium", &[], 17);
+    assert!(c.passed, "{c}");
+}
+
+#[test]
+fn furnace_matches_mitsuba() {
+    let c = check("furnace", &[], 18);
+    assert!(c.passed, "{c}");
+}
+
+/// The white furnace against its exact answer: 1 in every pixel and channel. The exact
+/// side has zero variance, so the test is as strict as our own noise allows.
+#[test]
+fn furnace_is_exactly_one() {
+    let scene = root().join("mitsuba_scenes/furnace.xml");
+    let ours = Estimate::from_chunks(&render_chunks(&scene, &[], CHUNKS, SPP, 19));
+    let n = ours.mean.len();
+    let exact = Estimate {
+        mean: vec![[1.0; 3]; n],
+        var_mean: vec![[0.0; 3]; n],
+        dof: f64::INFINITY,
+    };
+    let c = compare(&ours, &exact, independent_width(&scene, &[]), ALPHA, FALSE_ALARM);
+    println!("furnace vs exact 1: {c}");
+    assert!(c.passed, "{c}");
+}
+
+// ---- Power: the same comparison must fail on a slightly different medium ----
+
+#[test]
+fn comparison_detects_albedo_off_by_one_percent() {
+    let c = check("medium_cube", &[("albedo", "0.94")], 21);
+    assert!(!c.passed, "albedo 0.95 → 0.94 went undetected: {c}");
+}
+
+#[test]
+fn comparison_detects_negated_g() {
+    let c = check("medium_cube", &[("g", "-0.7")], 22);
+    assert!(!c.passed, "g 0.7 → −0.7 went undetected: {c}");
+}
+
+#[test]
+fn comparison_detects_sigma_t_off_by_five_percent() {
+    let c = check("medium_cube", &[("sigma_t", "10.5")], 23);
+    assert!(!c.passed, "sigma_t 10 → 10.5 went undetected: {c}");
+}
+
+/// Power on the chromatic estimator: one channel's sigma_t 5% off must be caught.
+#[test]
+fn comparison_detects_one_channel_of_sigma_t_off() {
+    let c = check("chromatic_sphere", &[("sigma_t", "1.0, 0.924, 0.8")], 24);
+    assert!(!c.passed, "green sigma_t 5% off went undetected: {c}");
+}
