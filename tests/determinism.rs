@@ -6,8 +6,12 @@ use common::{options, root};
 use mediareg::BuildOverrides;
 
 fn render_with_threads(threads: usize, seed: u64) -> Vec<[f32; 3]> {
+    render_scene_with_threads("dielectric_sphere", threads, seed)
+}
+
+fn render_scene_with_threads(name: &str, threads: usize, seed: u64) -> Vec<[f32; 3]> {
     let scene = mediareg::load_scene(
-        &root().join("mitsuba_scenes/dielectric_sphere.xml"),
+        &root().join(format!("mitsuba_scenes/{name}.xml")),
         &options(&[("res", "48")]),
         &BuildOverrides {
             spp: Some(16),
@@ -40,4 +44,19 @@ fn same_seed_is_bit_identical_across_thread_counts() {
         bits(&other),
         "a different seed gave the same image"
     );
+}
+
+/// volpath too (media, chromatic MIS, Russian roulette): 1 and 2 threads agree bit for bit.
+#[test]
+fn volpath_same_seed_is_bit_identical_across_thread_counts() {
+    for name in ["chromatic_sphere", "camera_in_medium"] {
+        let one = render_scene_with_threads(name, 1, 3);
+        let two = render_scene_with_threads(name, 2, 3);
+        assert!(
+            one.iter()
+                .zip(&two)
+                .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)),
+            "{name}: 1 vs 2 threads differ"
+        );
+    }
 }

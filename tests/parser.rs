@@ -1440,21 +1440,27 @@ fn medium_errors() {
     }
 }
 
-/// load_scene (the CLI path) refuses media for now; build_scene accepts them.
+/// A sensor takes its medium under any name (Mitsuba's Endpoint looks for any nested
+/// medium), and refuses a second one.
 #[test]
-fn load_scene_refuses_media_but_build_scene_accepts_them() {
-    let dir = tmp_dir("load_scene_media");
-    let path = write(
-        &dir,
-        "scene.xml",
-        &format!(
-            r#"<scene version="3.0.0">{SENSOR}<shape type="sphere"><bsdf type="null"/><medium type="homogeneous" name="interior"/></shape></scene>"#
+fn sensor_medium_any_name_at_most_one() {
+    let body = |media: &str| {
+        format!(
+            r#"<sensor type="perspective"><float name="fov" value="40"/>{media}
+                <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="4"/></film></sensor>"#
+        )
+    };
+    let s = build_raw(
+        "sensor_medium",
+        &body(
+            r#"<medium type="homogeneous" name="fog"><float name="sigma_t" value="0.5"/></medium>"#,
         ),
     );
-    let desc = load_file(&path, &LoadOptions::default()).unwrap();
-    assert!(build_scene(&desc, &BuildOverrides::default()).is_ok());
-    let e = mediareg::load_scene(&path, &LoadOptions::default(), &BuildOverrides::default())
-        .err()
-        .expect("load_scene should refuse media");
-    assert!(e.to_string().contains("media"), "{e}");
+    let m = s.camera_medium.expect("the sensor's medium");
+    assert_eq!(s.media[m as usize].sigma_t, Vec3::splat(0.5));
+    let desc = load(
+        "sensor_two_media",
+        &body(r#"<medium type="homogeneous"/><medium type="homogeneous"/>"#),
+    );
+    assert!(build_scene(&desc, &BuildOverrides::default()).is_err());
 }

@@ -64,7 +64,7 @@ impl Emitter {
                         let v = p - p_ref;
                         let dist = v.length();
                         let d = v / dist;
-                        if !(dist > 0.0) || n.dot(d) >= 0.0 || !pdf.is_finite() {
+                        if dist.is_nan() || dist <= 0.0 || n.dot(d) >= 0.0 || !pdf.is_finite() {
                             return None;
                         }
                         return Some(EmitterSample {

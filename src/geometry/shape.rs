@@ -203,7 +203,8 @@ impl Sphere {
         let cos_t = (1.0 - sin2).max(0.0).sqrt();
         // The angle at the centre between −dc and the hit point (akalin.com, visible sphere).
         let inv_sin_max = 1.0 / sin2_max.sqrt();
-        let cos_a = sin2 * inv_sin_max + cos_t * (1.0 - sin2 * inv_sin_max * inv_sin_max).max(0.0).sqrt();
+        let cos_a =
+            sin2 * inv_sin_max + cos_t * (1.0 - sin2 * inv_sin_max * inv_sin_max).max(0.0).sqrt();
         let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
         let (sp, cp) = (2.0 * std::f32::consts::PI * s.y).sin_cos();
         let local = Vec3A::new(cp * sin_a, sp * sin_a, cos_a);
@@ -261,9 +262,14 @@ mod tests {
             radius: 0.7,
             flip_normals: false,
         };
-        for p_ref in [Vec3A::new(0.0, 0.0, 4.0), Vec3A::new(1.2, 0.1, 0.4), Vec3A::new(40.0, 3.0, -9.0)] {
+        for p_ref in [
+            Vec3A::new(0.0, 0.0, 4.0),
+            Vec3A::new(1.2, 0.1, 0.4),
+            Vec3A::new(40.0, 3.0, -9.0),
+        ] {
             let axis = (sp.center - p_ref).normalize();
-            let cos_max = (1.0 - sp.radius * sp.radius / (sp.center - p_ref).length_squared()).sqrt();
+            let cos_max =
+                (1.0 - sp.radius * sp.radius / (sp.center - p_ref).length_squared()).sqrt();
             let n = 200;
             let mut mean = 0.0f64;
             for i in 0..n {
@@ -271,7 +277,9 @@ mod tests {
                     let s = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
                     let (p, nrm, pdf) = sp.sample_cone(p_ref, s).unwrap();
                     let d = (p - p_ref).normalize();
-                    let t = sp.intersect(p_ref, d, f32::MAX).expect("the sample must hit");
+                    let t = sp
+                        .intersect(p_ref, d, f32::MAX)
+                        .expect("the sample must hit");
                     assert!((t - (p - p_ref).length()).abs() < 1e-3 * t, "hit at {t}");
                     assert!(nrm.dot(d) < 1e-3, "a visible point faces the reference");
                     assert!((pdf - sp.cone_pdf(p_ref).unwrap()).abs() < 1e-3 * pdf);

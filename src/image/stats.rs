@@ -177,7 +177,10 @@ pub fn compare(
 ) -> Comparison {
     assert_eq!(a.mean.len(), b.mean.len(), "images differ in size");
     let width = independent_width.unwrap_or(a.mean.len());
-    assert!(width > 0 && a.mean.len() % width == 0, "width does not divide the image");
+    assert!(
+        width > 0 && a.mean.len().is_multiple_of(width),
+        "width does not divide the image"
+    );
     let height = a.mean.len() / width;
     let independent = independent_width.is_some();
     let nu = a.dof.min(b.dof);
@@ -228,7 +231,8 @@ pub fn compare(
     });
     let pixels = outlier_test(&pixel_z, alpha, nu, budget);
     let blocks = outlier_test(&block_z, BLOCK_ALPHA.max(alpha), nu, budget);
-    let passed = global_z.iter().all(|z| z.abs() <= global_threshold) && pixels.passed() && blocks.passed();
+    let passed =
+        global_z.iter().all(|z| z.abs() <= global_threshold) && pixels.passed() && blocks.passed();
     Comparison {
         global_z,
         global_threshold,

@@ -21,7 +21,7 @@
 //!   channel `c` picked per path and weights by `T / pdf_c`. Here the channel is picked
 //!   the same way (the "hero"), but the estimate is weighted by the path pdf averaged
 //!   over channels (one-sample MIS over channels, balance heuristic, as in pbrt-v4):
-//!     `f / ((1/3) Σ_c p_c) = β / mean(r)`,  `β = f / p_hero`,  `r_c = p_c / p_hero`.
+//!   `f / ((1/3) Σ_c p_c) = β / mean(r)` with `β = f / p_hero`, `r_c = p_c / p_hero`.
 //!   For grey σ_t, r = (1,1,1) and this is Mitsuba's estimator exactly.
 
 use glam::{Vec2, Vec3, Vec3A};
@@ -142,7 +142,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         let u_rr = rng.next_1d();
         if depth > s.rr_depth {
             let q = (beta.max_element() * eta * eta).min(0.95);
-            if !(u_rr < q) {
+            if q.is_nan() || u_rr >= q {
                 break;
             }
             beta /= q;
@@ -197,9 +197,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
                 if m.sample_emitters && n_emitters > 0 {
                     let (idx, u) = select_emitter(n_emitters, rng.next_2d());
                     let e = &scene.emitters[idx];
-                    if let Some(es) =
-                        e.sample_direction(p, u, &scene.geometries, &scene.bsphere)
-                    {
+                    if let Some(es) = e.sample_direction(p, u, &scene.geometries, &scene.bsphere) {
                         let phase_val = m.phase.eval(ray_d.dot(es.d));
                         let dist = (es.p - p).length() * (1.0 - SHADOW_EPSILON);
                         let tr = shadow_transmittance(scene, p, es.d, dist, medium);
@@ -286,12 +284,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
                             } else {
                                 mis_weight(es.pdf / n_emitters as f32, bsdf_pdf)
                             };
-                            result += beta
-                                * f
-                                * es.weight
-                                * tr
-                                * n_emitters as f32
-                                * w;
+                            result += beta * f * es.weight * tr * n_emitters as f32 * w;
                         }
                     }
                 }
@@ -309,7 +302,10 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         eta *= bs.eta;
         if !bs.null {
             depth += 1;
-            last = LastScatter { p: h.p, pdf: bs.pdf };
+            last = LastScatter {
+                p: h.p,
+                pdf: bs.pdf,
+            };
             specular_chain = bs.delta;
         }
         medium = medium_after(info, h.n, wo, medium);

@@ -35,7 +35,9 @@ const G_ISOTROPIC: f32 = 1e-3;
 pub enum Phase {
     Isotropic,
     /// Henyey–Greenstein with asymmetry `g` ∈ (−1, 1), Mitsuba's sign convention.
-    HenyeyGreenstein { g: f32 },
+    HenyeyGreenstein {
+        g: f32,
+    },
 }
 
 impl Phase {

@@ -660,8 +660,12 @@ impl Builder<'_> {
         // Mitsuba's flag for RGB sigma_t. With `false` Mitsuba weights scattering by the
         // albedo alone, which is exact only for grey extinction: for a chromatic sigma_t
         // it renders a biased image, which mediareg will not reproduce silently.
-        if !p.bool("has_spectral_extinction", true)? && sigma_t.min_element() != sigma_t.max_element() {
-            let loc = p.get("has_spectral_extinction").map_or(p.obj.loc.clone(), |(_, l)| l.clone());
+        if !p.bool("has_spectral_extinction", true)?
+            && sigma_t.min_element() != sigma_t.max_element()
+        {
+            let loc = p
+                .get("has_spectral_extinction")
+                .map_or(p.obj.loc.clone(), |(_, l)| l.clone());
             return Err(SceneError::at(
                 &loc,
                 format!("homogeneous medium: has_spectral_extinction = false with a chromatic sigma_t {sigma_t} is not supported (Mitsuba 3 renders it with a biased estimator)"),
