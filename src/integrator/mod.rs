@@ -6,15 +6,44 @@ pub mod path;
 pub mod sampler;
 pub mod volpath;
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
+use crate::geometry::offset_point;
 use crate::scene::film::ImageBlock;
-use crate::scene::{IntegratorKind, Scene};
+use crate::scene::{IntegratorKind, Scene, SurfaceInteraction};
 use sampler::Pcg32;
 
 const BLOCK: usize = 32;
+
+/// Uniform emitter selection that reuses the sample (Mitsuba's `Scene::sample_emitter`):
+/// the index and the rescaled sample.
+#[inline]
+pub(crate) fn select_emitter(n: usize, u: Vec2) -> (usize, Vec2) {
+    let x = u.x * n as f32;
+    let idx = (x as usize).min(n - 1);
+    (idx, Vec2::new(x - idx as f32, u.y))
+}
+
+/// The first hit along (o, d) that is not an emitter shape (`hide_emitters` on the
+/// camera ray: Mitsuba's `skip_area_emitters`).
+pub(crate) fn skip_emitters(
+    scene: &Scene,
+    mut o: Vec3A,
+    d: Vec3A,
+    mut tmax: f32,
+) -> Option<SurfaceInteraction> {
+    loop {
+        let si = scene.intersect(o, d, tmax)?;
+        if scene.shapes[si.shape as usize].emitter.is_none() {
+            return Some(si);
+        }
+        let o2 = offset_point(si.p, si.n, d);
+        tmax -= (o2 - o).length();
+        o = o2;
+    }
+}
 
 /// A rendered image: the crop window, row-major linear RGB.
 #[derive(Clone, Debug)]

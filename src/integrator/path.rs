@@ -9,8 +9,9 @@
 use glam::{Vec3, Vec3A};
 
 use super::sampler::Pcg32;
+use super::{select_emitter, skip_emitters};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
-use crate::scene::{Scene, SurfaceInteraction};
+use crate::scene::Scene;
 
 /// Power heuristic with β = 2: `a² / (a² + b²)`, 0 when not finite.
 #[inline]
@@ -30,24 +31,6 @@ struct PrevVertex {
     p: Vec3A,
     bsdf_pdf: f32,
     delta: bool,
-}
-
-/// Skips past emitter shapes along the camera ray (`hide_emitters`).
-fn skip_emitters(
-    scene: &Scene,
-    mut o: Vec3A,
-    d: Vec3A,
-    mut tmax: f32,
-) -> Option<SurfaceInteraction> {
-    loop {
-        let si = scene.intersect(o, d, tmax)?;
-        if scene.shapes[si.shape as usize].emitter.is_none() {
-            return Some(si);
-        }
-        let o2 = offset_point(si.p, si.n, d);
-        tmax -= (o2 - o).length();
-        o = o2;
-    }
 }
 
 /// One radiance sample along the camera ray (o, d).
@@ -112,11 +95,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
 
         // ---- Emitter sampling ----
         if bsdf.is_smooth() && !scene.emitters.is_empty() {
-            let u = rng.next_2d();
-            // Uniform selection, reusing the sample (Mitsuba's scene.cpp).
-            let x = u.x * n_emitters;
-            let idx = (x as usize).min(scene.emitters.len() - 1);
-            let u = glam::Vec2::new(x - idx as f32, u.y);
+            let (idx, u) = select_emitter(scene.emitters.len(), rng.next_2d());
             let e = &scene.emitters[idx];
             if let Some(es) = e.sample_direction(h.p, u, &scene.geometries, &scene.bsphere) {
                 let wo = h.sh_frame.to_local(es.d);

@@ -24,13 +24,14 @@
 //!   `f / ((1/3) Σ_c p_c) = β / mean(r)` with `β = f / p_hero`, `r_c = p_c / p_hero`.
 //!   For grey σ_t, r = (1,1,1) and this is Mitsuba's estimator exactly.
 
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{Vec3, Vec3A};
 
 use super::path::mis_weight;
 use super::sampler::Pcg32;
+use super::{select_emitter, skip_emitters};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::medium::{transmittance, HomogeneousMedium};
-use crate::scene::{Scene, ShapeInfo, SurfaceInteraction};
+use crate::scene::{Scene, ShapeInfo};
 
 /// Null-boundary crossings a shadow ray may make before it is treated as blocked
 /// (guards against a degenerate scene trapping the ray).
@@ -47,14 +48,6 @@ fn medium_after(info: &ShapeInfo, n: Vec3A, d: Vec3A, current: Option<u32>) -> O
     } else {
         info.interior
     }
-}
-
-/// Uniform emitter selection that reuses the sample (Mitsuba's `Scene::sample_emitter`).
-#[inline]
-fn select_emitter(n: usize, u: Vec2) -> (usize, Vec2) {
-    let x = u.x * n as f32;
-    let idx = (x as usize).min(n - 1);
-    (idx, Vec2::new(x - idx as f32, u.y))
 }
 
 /// Transmittance from `o` along unit `d` over `dist`, starting in `medium`: the product
@@ -88,24 +81,6 @@ fn shadow_transmittance(
         o = o2;
     }
     Vec3::ZERO
-}
-
-/// Skips past emitter shapes along the camera ray (`hide_emitters`).
-fn skip_emitters(
-    scene: &Scene,
-    mut o: Vec3A,
-    d: Vec3A,
-    mut tmax: f32,
-) -> Option<SurfaceInteraction> {
-    loop {
-        let si = scene.intersect(o, d, tmax)?;
-        if scene.shapes[si.shape as usize].emitter.is_none() {
-            return Some(si);
-        }
-        let o2 = offset_point(si.p, si.n, d);
-        tmax -= (o2 - o).length();
-        o = o2;
-    }
 }
 
 /// Where the path last scattered (for MIS of emitter hits).
