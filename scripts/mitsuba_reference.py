@@ -13,6 +13,14 @@ Writes, into --out (default: reference/):
 Each chunk renders spp/chunks samples per pixel with its own seed; chunks are
 independent, so their spread estimates the variance of the mean.
 
+With --derivative NAME --step H (and -D NAME=VALUE), each chunk is instead the
+derivative of the image with respect to the scene parameter NAME at VALUE, by
+Richardson-extrapolated central differences (error O(H^4)):
+  [8 (I(v + H/2) - I(v - H/2)) - (I(v + H) - I(v - H))] / (6 H),
+the four renders sharing the chunk's seed (common random numbers: with Russian
+roulette off, e.g. rr_depth >= max_depth, they follow the same paths). Output name
+default: the scene's stem + "_d" + NAME.
+
 Usage:
   scripts/mitsuba_reference.py mitsuba_scenes/cbox.xml --spp 4096 --chunks 8 \
       [-a ../shared/meshes] [-D name=value]... [--variant llvm_ad_rgb]
@@ -85,6 +93,8 @@ def main():
     ap.add_argument("-D", dest="defines", action="append", default=[], help="scene parameter name=value")
     ap.add_argument("--out", default="reference")
     ap.add_argument("--name", default=None, help="output name (default: the scene's stem)")
+    ap.add_argument("--derivative", default=None, help="differentiate with respect to this -D parameter")
+    ap.add_argument("--step", type=float, default=0.01, help="finite-difference step H for --derivative")
     args = ap.parse_args()
     if args.chunks < 2 or args.chunks % 2 or args.spp % args.chunks:
         sys.exit("--chunks must be even and >= 2, and divide --spp")
@@ -108,14 +118,23 @@ def main():
     search = [scene_dir] + [os.path.abspath(a) for a in args.search]
     for d in args.search:
         mi.file_resolver().append(os.path.abspath(d))
-    scene = mi.load_file(args.scene, **params)
+    if args.derivative is None:
+        scenes = [(1.0, mi.load_file(args.scene, **params))]
+    else:
+        if args.derivative not in params:
+            sys.exit(f"--derivative {args.derivative}: give its value with -D {args.derivative}=VALUE")
+        v, h = float(params[args.derivative]), args.step
+        weights = [(dv, w / (6 * h)) for dv, w in [(h / 2, 8), (-h / 2, -8), (h, -1), (-h, 1)]]
+        scenes = [(w, mi.load_file(args.scene, **{**params, args.derivative: repr(v + dv)}))
+                  for dv, w in weights]
 
     spp_chunk = args.spp // args.chunks
     chunks = []
     t0 = time.time()
     for i in range(args.chunks):
-        img = mi.render(scene, spp=spp_chunk, seed=args.seed + i)
-        chunks.append(np.array(img, dtype=np.float64)[:, :, :3])
+        img = sum(w * np.array(mi.render(sc, spp=spp_chunk, seed=args.seed + i), dtype=np.float64)[:, :, :3]
+                  for w, sc in scenes)
+        chunks.append(img)
         print(f"chunk {i + 1}/{args.chunks} done ({time.time() - t0:.1f} s)", flush=True)
     seconds = time.time() - t0
     stack = np.stack(chunks)
@@ -124,6 +143,8 @@ def main():
     half = args.chunks // 2
 
     name = args.name or os.path.splitext(os.path.basename(args.scene))[0]
+    if args.derivative and not args.name:
+        name += "_d" + args.derivative
     os.makedirs(args.out, exist_ok=True)
 
     def write(suffix, arr):
@@ -152,6 +173,9 @@ def main():
         "height": mean.shape[0],
         "sha256": {k: sha256(v) for k, v in sorted(files.items())},
         "made_by": "scripts/mitsuba_reference.py",
+        **({"derivative": {"param": args.derivative, "step": args.step,
+                           "scheme": "Richardson central differences, common random numbers"}}
+           if args.derivative else {}),
         "date": datetime.date.today().isoformat(),
     }
     with open(os.path.join(args.out, f"{name}.json"), "w") as f:

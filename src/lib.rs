@@ -10,6 +10,7 @@ pub mod geometry;
 pub mod image;
 pub mod integrator;
 pub mod medium;
+pub mod regularize;
 pub mod scene;
 pub mod xml;
 

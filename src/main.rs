@@ -7,6 +7,8 @@ use std::process::ExitCode;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Parser, Subcommand};
 
+use mediareg::integrator::volpath::Gradient;
+use mediareg::scene::IntegratorKind;
 use mediareg::{image, integrator, load_scene, xml, BuildOverrides};
 
 #[derive(Parser)]
@@ -47,7 +49,52 @@ enum Command {
         /// Do not write the PNG preview.
         #[arg(long)]
         no_png: bool,
+        /// Also render a derivative in the same paths: `albedo` writes OUT_dalbedo.exr,
+        /// d(radiance_c)/d(albedo_c) of one medium (volpath only).
+        #[arg(long, value_enum)]
+        gradient: Option<GradientArg>,
+        /// The medium (its XML id) whose albedo --gradient differentiates; needed when the
+        /// scene has several.
+        #[arg(long, value_name = "ID", requires = "gradient")]
+        medium: Option<String>,
     },
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum GradientArg {
+    Albedo,
+}
+
+/// The medium `--gradient` refers to: the one named, or the only one.
+fn gradient_medium(scene: &mediareg::scene::Scene, name: Option<&str>) -> Result<u32> {
+    let ids: Vec<String> = scene
+        .media
+        .iter()
+        .enumerate()
+        .map(|(i, m)| m.id.clone().unwrap_or_else(|| format!("(unnamed #{i})")))
+        .collect();
+    match name {
+        Some(n) => scene
+            .media
+            .iter()
+            .position(|m| m.id.as_deref() == Some(n))
+            .map(|i| i as u32)
+            .ok_or_else(|| {
+                anyhow!(
+                    "--medium {n}: no medium has that id; the scene's media: {}",
+                    ids.join(", ")
+                )
+            }),
+        None => match scene.media.len() {
+            0 => bail!("--gradient albedo: the scene has no medium"),
+            1 => Ok(0),
+            _ => bail!(
+                "--gradient albedo: the scene has {} media, name one with --medium ID: {}",
+                ids.len(),
+                ids.join(", ")
+            ),
+        },
+    }
 }
 
 fn main() -> ExitCode {
@@ -72,6 +119,8 @@ fn run(cli: Cli) -> Result<()> {
             seed,
             threads,
             no_png,
+            gradient,
+            medium,
         } => {
             let mut params = Vec::new();
             for d in &define {
@@ -110,12 +159,37 @@ fn run(cli: Cli) -> Result<()> {
                 }
             }
 
+            let gradient = match gradient {
+                None => Gradient::None,
+                Some(GradientArg::Albedo) => {
+                    if scene_data.integrator.kind != IntegratorKind::Volpath {
+                        bail!("--gradient albedo needs the volpath integrator (the scene uses path, which ignores media)");
+                    }
+                    Gradient::Albedo(gradient_medium(&scene_data, medium.as_deref())?)
+                }
+            };
+            let out_grad = {
+                let stem = out_exr.file_stem().unwrap_or_default().to_string_lossy();
+                out_exr.with_file_name(format!("{stem}_dalbedo.exr"))
+            };
+
             let show = std::io::stderr().is_terminal();
-            let (img, stats) = integrator::render(&scene_data, show);
-            image::write_exr(&out_exr, &img)?;
+            let rendered = integrator::render_with(
+                &scene_data,
+                &integrator::RenderOptions {
+                    show_progress: show,
+                    gradient,
+                },
+            );
+            let (img, stats) = (&rendered.image, &rendered.stats);
+            image::write_exr(&out_exr, img)?;
             let mut written = vec![out_exr.display().to_string()];
+            if let Some(g) = &rendered.gradient {
+                image::write_exr(&out_grad, g)?;
+                written.push(out_grad.display().to_string());
+            }
             if !no_png {
-                image::write_png(&out_png, &img)?;
+                image::write_png(&out_png, img)?;
                 written.push(out_png.display().to_string());
             }
             if stats.invalid_samples > 0 {

@@ -62,16 +62,47 @@ pub struct RenderStats {
     pub invalid_samples: u64,
 }
 
+/// What to render besides the radiance, and how to report progress.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RenderOptions {
+    pub show_progress: bool,
+    /// A derivative image to estimate in the same paths (volpath only).
+    pub gradient: volpath::Gradient,
+}
+
+/// The radiance image and, when asked for, the derivative image (same layout, signed).
+pub struct Rendered {
+    pub image: Image,
+    pub gradient: Option<Image>,
+    pub stats: RenderStats,
+}
+
 /// Renders `scene` at its `spp` and `seed` (the CLI overrides both through `BuildOverrides`).
 pub fn render(scene: &Scene, show_progress: bool) -> (Image, RenderStats) {
+    let r = render_with(
+        scene,
+        &RenderOptions {
+            show_progress,
+            ..Default::default()
+        },
+    );
+    (r.image, r.stats)
+}
+
+/// Renders radiance and, with `opts.gradient`, its derivative: each sample is splatted
+/// into both images with the same filter weight.
+pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
+    let show_progress = opts.show_progress;
+    let gradient = opts.gradient;
+    let with_gradient = gradient != volpath::Gradient::None;
     let film = &scene.film;
     let (cw, ch) = film.crop_size;
     let (ox, oy) = film.crop_offset;
     let border = film.rfilter.border();
     let spp = scene.spp;
-    let sample_fn = match scene.integrator.kind {
-        IntegratorKind::Path => path::sample,
-        IntegratorKind::Volpath => volpath::sample,
+    let sample = |o, d, tmax, rng: &mut Pcg32| match scene.integrator.kind {
+        IntegratorKind::Path => (path::sample(scene, o, d, tmax, rng), Vec3::ZERO),
+        IntegratorKind::Volpath => volpath::sample(scene, o, d, tmax, rng, gradient),
     };
 
     let mut tiles = Vec::new();
@@ -95,10 +126,12 @@ pub fn render(scene: &Scene, show_progress: bool) -> (Image, RenderStats) {
     };
 
     let start = std::time::Instant::now();
-    let results: Vec<(ImageBlock, u64)> = tiles
+    let results: Vec<(ImageBlock, Option<ImageBlock>, u64)> = tiles
         .par_iter()
         .map(|&(tx, ty, tw, th)| {
             let mut block = ImageBlock::new((tx as i64, ty as i64), (tw, th), border);
+            let mut d_block =
+                with_gradient.then(|| ImageBlock::new((tx as i64, ty as i64), (tw, th), border));
             let mut invalid = 0u64;
             for y in ty..ty + th {
                 for x in tx..tx + tw {
@@ -108,39 +141,50 @@ pub fn render(scene: &Scene, show_progress: bool) -> (Image, RenderStats) {
                         let u = rng.next_2d();
                         let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
                         let ray = scene.camera.sample_ray(pos);
-                        let mut l = sample_fn(scene, ray.o, ray.d, ray.tmax, &mut rng);
-                        if !l.is_finite() {
+                        let (mut l, mut dl) = sample(ray.o, ray.d, ray.tmax, &mut rng);
+                        if !l.is_finite() || !dl.is_finite() {
                             invalid += 1;
                             l = Vec3::ZERO;
+                            dl = Vec3::ZERO;
                         }
-                        block.put((pos.x - ox as f32, pos.y - oy as f32), l, &film.rfilter);
+                        let p = (pos.x - ox as f32, pos.y - oy as f32);
+                        block.put(p, l, &film.rfilter);
+                        if let Some(db) = &mut d_block {
+                            db.put(p, dl, &film.rfilter);
+                        }
                     }
                 }
             }
             bar.inc((tw * th) as u64 * spp as u64);
-            (block, invalid)
+            (block, d_block, invalid)
         })
         .collect();
     bar.finish_and_clear();
 
     let mut full = ImageBlock::new((0, 0), (cw, ch), border);
+    let mut d_full = with_gradient.then(|| ImageBlock::new((0, 0), (cw, ch), border));
     let mut invalid_samples = 0;
-    for (b, inv) in &results {
+    for (b, db, inv) in &results {
         b.accumulate_into(&mut full);
+        if let (Some(db), Some(d_full)) = (db, &mut d_full) {
+            db.accumulate_into(d_full);
+        }
         invalid_samples += inv;
     }
     let seconds = start.elapsed().as_secs_f64();
-    (
-        Image {
-            width: cw,
-            height: ch,
-            pixels: full.develop(),
-        },
-        RenderStats {
+    let as_image = |b: &ImageBlock| Image {
+        width: cw,
+        height: ch,
+        pixels: b.develop(),
+    };
+    Rendered {
+        image: as_image(&full),
+        gradient: d_full.as_ref().map(as_image),
+        stats: RenderStats {
             spp,
             samples: total,
             seconds,
             invalid_samples,
         },
-    )
+    }
 }

@@ -23,6 +23,13 @@
 //!   over channels (one-sample MIS over channels, balance heuristic, as in pbrt-v4):
 //!   `f / ((1/3) Σ_c p_c) = β / mean(r)` with `β = f / p_hero`, `r_c = p_c / p_hero`.
 //!   For grey σ_t, r = (1,1,1) and this is Mitsuba's estimator exactly.
+//!
+//! Albedo gradient (the paper, Sec. 4.1, Eq. 6–8). Sampling depends on σ_t only, so a
+//! path's pdf does not depend on the albedo α of the chosen medium, and its weight
+//! holds α_c once per scattering vertex in that medium: d f_c / d α_c = (k / α_c) f_c.
+//! It is computed in forward mode, `dβ` beside `β` (exact at α = 0 too, where k/α is
+//! not), with Russian roulette detached: `q` divides both. MIS weights and channel pdfs
+//! do not depend on α.
 
 use glam::{Vec3, Vec3A};
 
@@ -91,12 +98,45 @@ struct LastScatter {
     pdf: f32,
 }
 
+/// Which derivative to estimate beside the radiance.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Gradient {
+    #[default]
+    None,
+    /// d(radiance_c)/d(albedo_c) of this medium.
+    Albedo(u32),
+    /// A deliberately wrong variant for the power tests: NEE contributions do not count
+    /// the vertex they are made from (k − 1 instead of k).
+    #[doc(hidden)]
+    AlbedoIgnoringNeeVertex(u32),
+}
+
+impl Gradient {
+    fn medium(self) -> Option<u32> {
+        match self {
+            Gradient::None => None,
+            Gradient::Albedo(m) | Gradient::AlbedoIgnoringNeeVertex(m) => Some(m),
+        }
+    }
+}
+
 /// One radiance sample along the camera ray (o, d), the camera sitting in
-/// `scene.camera_medium`.
-pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> Vec3 {
+/// `scene.camera_medium`, and the sample of the derivative asked for (0 for none).
+pub fn sample(
+    scene: &Scene,
+    o: Vec3A,
+    d: Vec3A,
+    tmax: f32,
+    rng: &mut Pcg32,
+    gradient: Gradient,
+) -> (Vec3, Vec3) {
+    let grad_medium = gradient.medium();
     let s = &scene.integrator;
     let n_emitters = scene.emitters.len();
     let mut result = Vec3::ZERO;
+    let mut d_result = Vec3::ZERO;
+    // dβ/dα of the chosen medium's albedo (zero while no vertex in it).
+    let mut d_beta = Vec3::ZERO;
     // β = f / p_hero and r_c = p_c / p_hero (see the module comment), rescaled together
     // after every free flight so that mean(r) = 1: β is then the path's weight.
     let mut beta = Vec3::ONE;
@@ -111,21 +151,30 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
 
     loop {
         // ---- Termination: zero weight, depth, Russian roulette ----
-        if beta == Vec3::ZERO || depth >= s.max_depth {
+        if (beta == Vec3::ZERO && d_beta == Vec3::ZERO) || depth >= s.max_depth {
             break;
         }
         let u_rr = rng.next_1d();
         if depth > s.rr_depth {
-            let q = (beta.max_element() * eta * eta).min(0.95);
+            // The same q as without a gradient (same paths), except that a path whose β
+            // is 0 but dβ is not (albedo 0) must keep q > 0 for the detached estimator.
+            let w = match beta.max_element() {
+                b if b > 0.0 => b,
+                _ => d_beta.abs().max_element(),
+            };
+            let q = (w * eta * eta).min(0.95);
             if q.is_nan() || u_rr >= q {
                 break;
             }
             beta /= q;
+            d_beta /= q;
         }
 
         // ---- Free flight through the current medium ----
         let mut si;
         let mut in_medium = false;
+        // dβ without this vertex's own α (for the power-test variant only).
+        let mut d_beta_before = Vec3::ZERO;
         if let Some(mi) = medium {
             let m: &HomogeneousMedium = &scene.media[mi as usize];
             let t = m.sample_distance(hero, rng.next_1d());
@@ -136,14 +185,23 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
                     let tr = m.transmittance(h.t);
                     let w = tr / tr[hero];
                     beta *= w;
+                    d_beta *= w;
                     r_u *= w;
                 }
                 None if t.is_finite() && t <= ray_tmax => {
-                    // Collision at t: f = T σ_s, p_c = σ_t,c T_c.
+                    // Collision at t: f = T σ_t α, p_c = σ_t,c T_c.
                     let tr = m.transmittance(t);
                     let p_hero = m.sigma_t[hero] * tr[hero];
-                    beta *= tr * m.sigma_s() / p_hero;
-                    r_u *= m.sigma_t * tr / p_hero;
+                    let w = tr * m.sigma_t / p_hero;
+                    // d(β w α)/dα = dβ w α + β w in the chosen medium.
+                    d_beta_before = d_beta * w * m.albedo;
+                    d_beta = if grad_medium == Some(mi) {
+                        d_beta_before + beta * w
+                    } else {
+                        d_beta_before
+                    };
+                    beta *= w * m.albedo;
+                    r_u *= w;
                     in_medium = true;
                 }
                 None => {
@@ -151,6 +209,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
                     let tr = m.transmittance(ray_tmax);
                     let w = tr / tr[hero];
                     beta *= w;
+                    d_beta *= w;
                     r_u *= w;
                 }
             }
@@ -158,8 +217,10 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
             // update unchanged, and keeps both bounded on long chromatic paths.
             let k = mean(r_u);
             beta /= k;
+            d_beta /= k;
+            d_beta_before /= k;
             r_u /= k;
-            if !beta.is_finite() || !r_u.is_finite() {
+            if !beta.is_finite() || !r_u.is_finite() || !d_beta.is_finite() {
                 break;
             }
             if in_medium {
@@ -182,7 +243,12 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
                             } else {
                                 mis_weight(es.pdf / n_emitters as f32, phase_val)
                             };
-                            result += beta * phase_val * es.weight * tr * n_emitters as f32 * w;
+                            let x = phase_val * es.weight * tr * n_emitters as f32 * w;
+                            result += beta * x;
+                            d_result += x * match gradient {
+                                Gradient::AlbedoIgnoringNeeVertex(_) => d_beta_before,
+                                _ => d_beta,
+                            };
                         }
                     }
                 }
@@ -225,6 +291,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
                     mis_weight(last.pdf, em_pdf)
                 };
                 result += beta * le * w;
+                d_result += d_beta * le * w;
             }
         }
         let Some(h) = si else { break };
@@ -259,7 +326,9 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
                             } else {
                                 mis_weight(es.pdf / n_emitters as f32, bsdf_pdf)
                             };
-                            result += beta * f * es.weight * tr * n_emitters as f32 * w;
+                            let x = f * es.weight * tr * n_emitters as f32 * w;
+                            result += beta * x;
+                            d_result += d_beta * x;
                         }
                     }
                 }
@@ -274,6 +343,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         };
         let wo = h.sh_frame.to_world(bs.wo);
         beta *= bs.weight;
+        d_beta *= bs.weight;
         eta *= bs.eta;
         if !bs.null {
             depth += 1;
@@ -288,7 +358,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         ray_d = wo;
         ray_tmax = f32::INFINITY;
     }
-    result
+    (result, d_result)
 }
 
 #[inline]

@@ -23,6 +23,8 @@ pub struct HomogeneousMedium {
     /// Next-event estimation at scattering vertices in this medium (Mitsuba's
     /// `sample_emitters`, default true).
     pub sample_emitters: bool,
+    /// The XML `id`, to name the medium (e.g. `--gradient albedo --medium ID`).
+    pub id: Option<String>,
 }
 
 impl HomogeneousMedium {
@@ -71,6 +73,7 @@ mod tests {
             sigma_t: Vec3::new(2.0, 5.0, 0.0),
             phase: Phase::Isotropic,
             sample_emitters: true,
+            id: None,
         };
         let n = 200_000;
         for (c, want) in [(0, 0.5f64), (1, 0.2)] {

@@ -693,12 +693,14 @@ impl Builder<'_> {
             }
             None => Phase::Isotropic,
         };
+        let medium_id = p.obj.id.clone();
         p.finish("albedo, sigma_t, scale, sample_emitters, has_spectral_extinction, phase")?;
         self.media.push(HomogeneousMedium {
             albedo,
             sigma_t: sigma_t * scale as f32,
             phase,
             sample_emitters,
+            id: medium_id,
         });
         let i = self.media.len() as u32 - 1;
         self.medium_ids.insert(id, i);

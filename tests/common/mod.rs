@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use mediareg::image::stats::{compare, Comparison, Estimate};
+use mediareg::scene::Scene;
 use mediareg::xml::LoadOptions;
 use mediareg::BuildOverrides;
 use sha2::{Digest, Sha256};
@@ -35,6 +36,19 @@ pub fn options(params: &[(&str, &str)]) -> LoadOptions {
     }
 }
 
+/// Loads `scene` with `params` at `spp` samples and `seed`.
+pub fn load_seeded(scene: &Path, params: &[(&str, &str)], spp: u32, seed: u64) -> Scene {
+    mediareg::load_scene(
+        scene,
+        &options(params),
+        &BuildOverrides {
+            spp: Some(spp),
+            seed: Some(seed),
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// Renders `k` independent images (seeds base_seed..base_seed+k) of `spp` samples each.
 pub fn render_chunks(
     scene: &Path,
@@ -45,16 +59,33 @@ pub fn render_chunks(
 ) -> Vec<Vec<[f32; 3]>> {
     (0..k)
         .map(|i| {
-            let s = mediareg::load_scene(
-                scene,
-                &options(params),
-                &BuildOverrides {
-                    spp: Some(spp),
-                    seed: Some(base_seed + i as u64),
-                },
-            )
-            .unwrap_or_else(|e| panic!("{e}"));
+            let s = load_seeded(scene, params, spp, base_seed + i as u64);
             mediareg::integrator::render(&s, false).0.pixels
+        })
+        .collect()
+}
+
+/// Renders `k` independent gradient images (seeds base_seed..): the derivative image of
+/// `gradient` from each render.
+pub fn render_gradient_chunks(
+    scene: &Path,
+    params: &[(&str, &str)],
+    k: usize,
+    spp: u32,
+    base_seed: u64,
+    gradient: mediareg::integrator::volpath::Gradient,
+) -> Vec<Vec<[f32; 3]>> {
+    (0..k)
+        .map(|i| {
+            let s = load_seeded(scene, params, spp, base_seed + i as u64);
+            let opts = mediareg::integrator::RenderOptions {
+                show_progress: false,
+                gradient,
+            };
+            mediareg::integrator::render_with(&s, &opts)
+                .gradient
+                .expect("a gradient was asked for")
+                .pixels
         })
         .collect()
 }

@@ -1,0 +1,176 @@
+//! The albedo gradient (`--gradient albedo`): d(radiance_c)/d(albedo_c) estimated in the
+//! same paths as the radiance (the paper, Sec. 4.1), checked three ways.
+//!
+//! * Against finite differences of mediareg's own renders with common random numbers:
+//!   with Russian roulette off (rr_depth ≥ max_depth) the renders at α ± h follow the same
+//!   paths, each path's weight is c·α^k, and the central difference differs from the
+//!   derivative k α^{k−1} c only by its truncation error, at most
+//!   (K−1)(K−2)/6 · h²/α² relative for k < K = max_depth, plus float rounding.
+//! * Against Mitsuba 3's own derivative of the same XML: reference/medium_cube_dalbedo,
+//!   Richardson central differences of Mitsuba 3 renders with common random numbers
+//!   (scripts/mitsuba_reference.py --derivative albedo), compared statistically like the
+//!   radiance (tests/volpath_equivalence.rs).
+//! * Power: a gradient 5% too large, and one that leaves out the vertex each NEE
+//!   contribution is made from, must fail that comparison.
+
+mod common;
+
+use common::{
+    independent_width, load_seeded, reference, render_gradient_chunks, root, ALPHA, FALSE_ALARM,
+};
+use mediareg::image::stats::{compare, Comparison, Estimate};
+use mediareg::integrator::volpath::Gradient;
+use mediareg::integrator::{render_with, RenderOptions};
+
+const CHUNKS: usize = 16;
+const SPP: u32 = 128;
+/// The parameters reference/medium_cube_dalbedo.json was made with.
+const PARAMS: [(&str, &str); 3] = [("albedo", "0.95"), ("max_depth", "12"), ("rr_depth", "100")];
+
+fn cube() -> std::path::PathBuf {
+    root().join("mitsuba_scenes/medium_cube.xml")
+}
+
+fn render(
+    params: &[(&str, &str)],
+    spp: u32,
+    seed: u64,
+    gradient: Gradient,
+) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
+    let s = load_seeded(&cube(), params, spp, seed);
+    let r = render_with(
+        &s,
+        &RenderOptions {
+            show_progress: false,
+            gradient,
+        },
+    );
+    (r.image.pixels, r.gradient.map(|g| g.pixels))
+}
+
+#[test]
+fn gradient_matches_finite_differences_with_common_random_numbers() {
+    let (alpha, h, k_max) = (0.95f64, 0.01f64, 12.0f64);
+    let render_at = |a: f64, gradient| {
+        let a = a.to_string();
+        render(
+            &[("albedo", &a), ("max_depth", "12"), ("rr_depth", "100")],
+            16,
+            3,
+            gradient,
+        )
+    };
+    let (plus, _) = render_at(alpha + h, Gradient::None);
+    let (minus, _) = render_at(alpha - h, Gradient::None);
+    let (_, grad) = render_at(alpha, Gradient::Albedo(0));
+    let grad = grad.unwrap();
+    // Truncation: Σ c_k [C(k,3) α^{k−3} h² + …] ≤ G (K−1)(K−2)/6 · h²/α² (1 + 1%).
+    let trunc = (k_max - 1.0) * (k_max - 2.0) / 6.0 * h * h / (alpha * alpha) * 1.01;
+    // Rounding: each render's pixel is exact to ~1e-5 relative (f32 path arithmetic and
+    // accumulation), and the difference is divided by 2h.
+    let round = 1e-5 / (2.0 * h);
+    let mut worst = 0.0f64;
+    let mut nonzero = 0;
+    for i in 0..grad.len() {
+        for c in 0..3 {
+            let fd = (plus[i][c] as f64 - minus[i][c] as f64) / (2.0 * h);
+            let g = grad[i][c] as f64;
+            let tol = g.abs() * trunc + round * (plus[i][c].abs() + minus[i][c].abs()) as f64;
+            let excess = (fd - g).abs() / tol.max(1e-12);
+            worst = worst.max(excess);
+            assert!(
+                (fd - g).abs() <= tol,
+                "pixel {i} channel {c}: finite difference {fd} vs gradient {g} (tolerance {tol})"
+            );
+            if g > 0.0 {
+                nonzero += 1;
+            }
+        }
+    }
+    assert!(nonzero > grad.len(), "the gradient image is (nearly) empty");
+    println!("largest |FD − G| / tolerance: {worst:.3}");
+}
+
+fn check(gradient: Gradient, scale: f32, seed: u64) -> Comparison {
+    let r = reference("medium_cube_dalbedo", &cube());
+    let mut chunks = render_gradient_chunks(&cube(), &PARAMS, CHUNKS, SPP, seed, gradient);
+    for img in &mut chunks {
+        for p in img.iter_mut() {
+            *p = p.map(|v| v * scale);
+        }
+    }
+    let ours = Estimate::from_chunks(&chunks);
+    let c = compare(
+        &ours,
+        &r.estimate,
+        independent_width(&cube(), &PARAMS),
+        ALPHA,
+        FALSE_ALARM,
+    );
+    println!("gradient {gradient:?} x{scale}: {c}");
+    c
+}
+
+#[test]
+fn gradient_matches_mitsuba_derivative() {
+    let c = check(Gradient::Albedo(0), 1.0, 31);
+    assert!(c.passed, "{c}");
+}
+
+#[test]
+fn comparison_detects_gradient_five_percent_too_large() {
+    let c = check(Gradient::Albedo(0), 1.05, 32);
+    assert!(!c.passed, "a gradient scaled by 1.05 went undetected: {c}");
+}
+
+#[test]
+fn comparison_detects_gradient_ignoring_nee_vertices() {
+    let c = check(Gradient::AlbedoIgnoringNeeVertex(0), 1.0, 33);
+    assert!(
+        !c.passed,
+        "a gradient that ignores NEE vertices went undetected: {c}"
+    );
+}
+
+/// Same paths: asking for the gradient leaves the radiance image bit for bit the same
+/// where Russian roulette does not run.
+#[test]
+fn gradient_does_not_change_the_radiance() {
+    let p = [("max_depth", "12"), ("rr_depth", "100")];
+    let (plain, _) = render(&p, 8, 5, Gradient::None);
+    let (with, _) = render(&p, 8, 5, Gradient::Albedo(0));
+    assert!(plain
+        .iter()
+        .zip(&with)
+        .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)));
+}
+
+/// The command line: several media need --medium (the error lists them), an unknown id
+/// is named, and the path integrator (which ignores media) is refused.
+#[test]
+fn gradient_command_line_errors() {
+    let run = |scene: &std::path::Path, extra: &[&str]| {
+        let out = std::env::temp_dir().join(format!("mediareg_grad_{}.exr", std::process::id()));
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_mediareg"))
+            .arg("render")
+            .arg(scene)
+            .args(["--gradient", "albedo", "--spp", "1", "--no-png", "-o"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .expect("run mediareg");
+        assert!(!o.status.success(), "expected failure");
+        assert!(!out.exists(), "no output on error");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let two = root().join("tests/bad_input/two_media.xml");
+    let e = run(&two, &[]);
+    assert!(
+        e.contains("--medium") && e.contains("milk") && e.contains("wax"),
+        "{e}"
+    );
+    let e = run(&two, &["--medium", "honey"]);
+    assert!(e.contains("honey") && e.contains("milk"), "{e}");
+    let e = run(&root().join("mitsuba_scenes/cbox.xml"), &[]);
+    assert!(e.contains("volpath"), "{e}");
+}
