@@ -4,3 +4,4 @@
 //! denoise the gradient, and predict the image at the target albedo α_t.
 
 pub mod predict;
+pub mod temporal;
