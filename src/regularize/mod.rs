@@ -4,4 +4,5 @@
 //! denoise the gradient, and predict the image at the target albedo α_t.
 
 pub mod predict;
+pub mod spatial;
 pub mod temporal;
