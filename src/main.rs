@@ -1,14 +1,19 @@
 //! The `mediareg` command line: argument parsing and reporting only.
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{anyhow, bail, Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
+use glam::Vec3;
 
 use mediareg::integrator::volpath::Gradient;
-use mediareg::scene::IntegratorKind;
+use mediareg::integrator::Image;
+use mediareg::regularize::sequence::CameraPath;
+use mediareg::regularize::spatial::BilateralParams;
+use mediareg::regularize::{self, CBeta, Method, Reproject};
+use mediareg::scene::{IntegratorKind, Scene};
 use mediareg::{image, integrator, load_scene, xml, BuildOverrides};
 
 #[derive(Parser)]
@@ -22,33 +27,40 @@ struct Cli {
     command: Command,
 }
 
+/// What every command needs to load a scene.
+#[derive(Args)]
+struct SceneArgs {
+    /// The scene file (Mitsuba 3 XML).
+    scene: PathBuf,
+    /// Output EXR (default: the scene's name with .exr, beside the scene, as Mitsuba does).
+    #[arg(short = 'o', long = "output")]
+    output: Option<PathBuf>,
+    /// Set a scene parameter: -D name=value (overrides <default>).
+    #[arg(short = 'D', value_name = "NAME=VALUE")]
+    define: Vec<String>,
+    /// Add a folder to the search path for meshes and includes.
+    #[arg(short = 'a', value_name = "DIR")]
+    search: Vec<PathBuf>,
+    /// Samples per pixel (overrides the sampler's sample_count).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Random seed (overrides the sampler's seed).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Number of render threads (default: all cores).
+    #[arg(short = 't', long = "threads")]
+    threads: Option<usize>,
+    /// Do not write PNG previews.
+    #[arg(long)]
+    no_png: bool,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Render a Mitsuba 3 scene file to OUT.exr (linear RGB) and OUT.png (sRGB preview).
     Render {
-        /// The scene file (Mitsuba 3 XML).
-        scene: PathBuf,
-        /// Output EXR (default: the scene's name with .exr, beside the scene, as Mitsuba does).
-        #[arg(short = 'o', long = "output")]
-        output: Option<PathBuf>,
-        /// Set a scene parameter: -D name=value (overrides <default>).
-        #[arg(short = 'D', value_name = "NAME=VALUE")]
-        define: Vec<String>,
-        /// Add a folder to the search path for meshes and includes.
-        #[arg(short = 'a', value_name = "DIR")]
-        search: Vec<PathBuf>,
-        /// Samples per pixel (overrides the sampler's sample_count).
-        #[arg(long)]
-        spp: Option<u32>,
-        /// Random seed (overrides the sampler's seed).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Number of render threads (default: all cores).
-        #[arg(short = 't', long = "threads")]
-        threads: Option<usize>,
-        /// Do not write the PNG preview.
-        #[arg(long)]
-        no_png: bool,
+        #[command(flatten)]
+        args: SceneArgs,
         /// Also render a derivative in the same paths: `albedo` writes OUT_dalbedo.exr,
         /// d(radiance_c)/d(albedo_c) of one medium (volpath only).
         #[arg(long, value_enum)]
@@ -58,6 +70,59 @@ enum Command {
         #[arg(long, value_name = "ID", requires = "gradient")]
         medium: Option<String>,
     },
+    /// The paper's method: render at source albedo factor × the scene's, denoise the
+    /// albedo gradient over a camera sequence, predict the image at the scene's albedo.
+    /// Writes OUT.exr (the prediction), OUT_source.exr, OUT_dalbedo_raw.exr and
+    /// OUT_dalbedo.exr (denoised), each with a PNG preview.
+    Regularize {
+        #[command(flatten)]
+        args: SceneArgs,
+        /// The medium (its XML id) to extrapolate; needed when the scene has several.
+        #[arg(long, value_name = "ID")]
+        medium: Option<String>,
+        /// Source albedo = factor × the scene's albedo (per channel).
+        #[arg(long, default_value_t = 0.95)]
+        factor: f32,
+        /// c_β of the paper's predictor (0 < c_β ≤ σ_t α_s), or `fit` to fit it to a
+        /// cheap render (--fit-spp, --fit-at).
+        #[arg(long = "c-beta", default_value = "0.5", value_name = "C|fit")]
+        c_beta: String,
+        /// Samples per pixel of the render c_β is fitted to.
+        #[arg(long, default_value_t = 4)]
+        fit_spp: u32,
+        /// The fit's albedo: source + at × (target − source).
+        #[arg(long, default_value_t = 1.0)]
+        fit_at: f32,
+        /// N: the target frame and N − 1 earlier frames.
+        #[arg(long, default_value_t = 11)]
+        frames: usize,
+        /// The blending weight w_a of Eq. 10.
+        #[arg(long, default_value_t = 0.1)]
+        wa: f64,
+        /// How earlier frames are reprojected into the target frame.
+        #[arg(long, value_enum, default_value = "exact")]
+        reproject: ReprojectArg,
+        /// The camera moved this many degrees per frame about the --target point, around
+        /// its up vector.
+        #[arg(long, value_name = "DEGREES", conflicts_with_all = ["dolly", "camera_path"])]
+        orbit: Option<f32>,
+        /// The camera moved this far per frame along its view direction.
+        #[arg(long, value_name = "DISTANCE", conflicts_with = "camera_path")]
+        dolly: Option<f32>,
+        /// A file of sensor transforms, one per line in time order, the last the target
+        /// frame: 16 numbers (4x4 row-major) or 9 (origin target up).
+        #[arg(long, value_name = "FILE")]
+        camera_path: Option<PathBuf>,
+        /// The orbit's centre "x,y,z" (default: the first visible point at the image centre).
+        #[arg(long, value_name = "X,Y,Z")]
+        target: Option<String>,
+        /// Also filter the gradient spatially (joint bilateral, guided by the first hit).
+        #[arg(long)]
+        spatial: bool,
+        /// The prediction function.
+        #[arg(long, value_enum, default_value = "paper")]
+        predict: PredictArg,
+    },
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -65,36 +130,18 @@ enum GradientArg {
     Albedo,
 }
 
-/// The medium `--gradient` refers to: the one named, or the only one.
-fn gradient_medium(scene: &mediareg::scene::Scene, name: Option<&str>) -> Result<u32> {
-    let ids: Vec<String> = scene
-        .media
-        .iter()
-        .enumerate()
-        .map(|(i, m)| m.id.clone().unwrap_or_else(|| format!("(unnamed #{i})")))
-        .collect();
-    match name {
-        Some(n) => scene
-            .media
-            .iter()
-            .position(|m| m.id.as_deref() == Some(n))
-            .map(|i| i as u32)
-            .ok_or_else(|| {
-                anyhow!(
-                    "--medium {n}: no medium has that id; the scene's media: {}",
-                    ids.join(", ")
-                )
-            }),
-        None => match scene.media.len() {
-            0 => bail!("--gradient albedo: the scene has no medium"),
-            1 => Ok(0),
-            _ => bail!(
-                "--gradient albedo: the scene has {} media, name one with --medium ID: {}",
-                ids.len(),
-                ids.join(", ")
-            ),
-        },
-    }
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ReprojectArg {
+    Exact,
+    Shift,
+    None,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum PredictArg {
+    Paper,
+    Linear,
+    Loglinear,
 }
 
 fn main() -> ExitCode {
@@ -108,69 +155,78 @@ fn main() -> ExitCode {
     }
 }
 
+/// Loads the scene and checks where the output goes; returns the scene and OUT.exr.
+fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
+    let mut params = Vec::new();
+    for d in &args.define {
+        let (k, v) = d
+            .split_once('=')
+            .ok_or_else(|| anyhow!("-D {d}: expected NAME=VALUE"))?;
+        params.push((k.trim().to_string(), v.to_string()));
+    }
+    if args.spp == Some(0) {
+        bail!("--spp must be at least 1");
+    }
+    if let Some(t) = args.threads {
+        if t == 0 {
+            bail!("-t must be at least 1");
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build_global()
+            .context("cannot set up the thread pool")?;
+    }
+    let opts = xml::LoadOptions {
+        params,
+        search_dirs: args.search.clone(),
+    };
+    let overrides = BuildOverrides {
+        spp: args.spp,
+        seed: args.seed,
+    };
+    let scene = load_scene(&args.scene, &opts, &overrides).map_err(|e| anyhow!("{e}"))?;
+
+    let out_exr = args
+        .output
+        .clone()
+        .unwrap_or_else(|| args.scene.with_extension("exr"));
+    if out_exr.extension().and_then(|e| e.to_str()) != Some("exr") {
+        bail!("output {} must end in .exr", out_exr.display());
+    }
+    if let Some(dir) = out_exr.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if !dir.is_dir() {
+            bail!("output folder {} does not exist", dir.display());
+        }
+    }
+    Ok((scene, out_exr))
+}
+
+/// OUT.exr with `_suffix` added to its stem.
+fn sibling(out_exr: &Path, suffix: &str) -> PathBuf {
+    let stem = out_exr.file_stem().unwrap_or_default().to_string_lossy();
+    out_exr.with_file_name(format!("{stem}{suffix}.exr"))
+}
+
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render {
-            scene,
-            output,
-            define,
-            search,
-            spp,
-            seed,
-            threads,
-            no_png,
+            args,
             gradient,
             medium,
         } => {
-            let mut params = Vec::new();
-            for d in &define {
-                let (k, v) = d
-                    .split_once('=')
-                    .ok_or_else(|| anyhow!("-D {d}: expected NAME=VALUE"))?;
-                params.push((k.trim().to_string(), v.to_string()));
-            }
-            if spp == Some(0) {
-                bail!("--spp must be at least 1");
-            }
-            if let Some(t) = threads {
-                if t == 0 {
-                    bail!("-t must be at least 1");
-                }
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(t)
-                    .build_global()
-                    .context("cannot set up the thread pool")?;
-            }
-            let opts = xml::LoadOptions {
-                params,
-                search_dirs: search,
-            };
-            let scene_data = load_scene(&scene, &opts, &BuildOverrides { spp, seed })
-                .map_err(|e| anyhow!("{e}"))?;
-
-            let out_exr = output.unwrap_or_else(|| scene.with_extension("exr"));
-            if out_exr.extension().and_then(|e| e.to_str()) != Some("exr") {
-                bail!("output {} must end in .exr", out_exr.display());
-            }
-            let out_png = out_exr.with_extension("png");
-            if let Some(dir) = out_exr.parent().filter(|d| !d.as_os_str().is_empty()) {
-                if !dir.is_dir() {
-                    bail!("output folder {} does not exist", dir.display());
-                }
-            }
-
+            let (scene_data, out_exr) = prepare(&args)?;
             let gradient = match gradient {
                 None => Gradient::None,
                 Some(GradientArg::Albedo) => {
                     if scene_data.integrator.kind != IntegratorKind::Volpath {
                         bail!("--gradient albedo needs the volpath integrator (the scene uses path, which ignores media)");
                     }
-                    Gradient::Albedo(gradient_medium(&scene_data, medium.as_deref())?)
+                    Gradient::Albedo(
+                        scene_data
+                            .medium_index(medium.as_deref())
+                            .map_err(|e| anyhow!("--gradient albedo: {e}"))?,
+                    )
                 }
-            };
-            let out_grad = {
-                let stem = out_exr.file_stem().unwrap_or_default().to_string_lossy();
-                out_exr.with_file_name(format!("{stem}_dalbedo.exr"))
             };
 
             let show = std::io::stderr().is_terminal();
@@ -185,10 +241,12 @@ fn run(cli: Cli) -> Result<()> {
             image::write_exr(&out_exr, img)?;
             let mut written = vec![out_exr.display().to_string()];
             if let Some(g) = &rendered.gradient {
+                let out_grad = sibling(&out_exr, "_dalbedo");
                 image::write_exr(&out_grad, g)?;
                 written.push(out_grad.display().to_string());
             }
-            if !no_png {
+            if !args.no_png {
+                let out_png = out_exr.with_extension("png");
                 image::write_png(&out_png, img)?;
                 written.push(out_png.display().to_string());
             }
@@ -209,5 +267,169 @@ fn run(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
+        Command::Regularize {
+            args,
+            medium,
+            factor,
+            c_beta,
+            fit_spp,
+            fit_at,
+            frames,
+            wa,
+            reproject,
+            orbit,
+            dolly,
+            camera_path,
+            target,
+            spatial,
+            predict,
+        } => {
+            let (mut scene_data, out_exr) = prepare(&args)?;
+            let medium = scene_data
+                .medium_index(medium.as_deref())
+                .map_err(|e| anyhow!("regularize: {e}"))?;
+            let c_beta = if c_beta == "fit" {
+                CBeta::Fit {
+                    spp: fit_spp,
+                    at: fit_at,
+                }
+            } else {
+                CBeta::Fixed(
+                    c_beta
+                        .parse::<f32>()
+                        .ok()
+                        .filter(|c| c.is_finite())
+                        .ok_or_else(|| anyhow!("--c-beta {c_beta}: expected a number or `fit`"))?,
+                )
+            };
+            let method = match predict {
+                PredictArg::Paper => Method::Paper(c_beta),
+                PredictArg::Linear => Method::Linear,
+                PredictArg::Loglinear => Method::LogLinear,
+            };
+            let path = match (orbit, dolly, camera_path) {
+                (Some(degrees), _, _) => {
+                    let target = match target {
+                        Some(t) => parse_point(&t)?,
+                        None => centre_point(&scene_data)?,
+                    };
+                    CameraPath::Orbit {
+                        degrees_per_frame: degrees,
+                        target,
+                    }
+                }
+                (_, Some(distance), _) => CameraPath::Dolly {
+                    distance_per_frame: distance,
+                },
+                (_, _, Some(file)) => {
+                    let p = CameraPath::read(&file).map_err(|e| anyhow!("{e}"))?;
+                    // The file's last transform is the target frame.
+                    if let CameraPath::Transforms(list) = &p {
+                        scene_data.camera.to_world = *list.last().expect("not empty");
+                    }
+                    p
+                }
+                _ => CameraPath::Static,
+            };
+            if frames > 1 && path == CameraPath::Static {
+                eprintln!(
+                    "note: no --orbit, --dolly or --camera-path: the {frames} frames share the sensor and differ only in their noise"
+                );
+            }
+            let opts = regularize::Options {
+                medium,
+                factor,
+                frames,
+                w_a: wa,
+                path,
+                reproject: match reproject {
+                    ReprojectArg::Exact => Reproject::Exact,
+                    ReprojectArg::Shift => Reproject::Shift,
+                    ReprojectArg::None => Reproject::None,
+                },
+                spatial: spatial.then(BilateralParams::default),
+                method,
+                show_progress: std::io::stderr().is_terminal(),
+            };
+            let r = regularize::regularize(&mut scene_data, &opts).map_err(|e| anyhow!("{e}"))?;
+
+            let outputs: [(PathBuf, &Image, bool); 4] = [
+                (out_exr.clone(), &r.predicted, false),
+                (sibling(&out_exr, "_source"), &r.source, false),
+                (sibling(&out_exr, "_dalbedo_raw"), &r.raw_gradient, true),
+                (sibling(&out_exr, "_dalbedo"), &r.gradient, true),
+            ];
+            // Both gradient previews on the raw gradient's scale, so they compare.
+            let scale = image::signed_scale(&r.raw_gradient);
+            let mut written = Vec::new();
+            for (path, img, signed) in &outputs {
+                image::write_exr(path, img)?;
+                written.push(path.display().to_string());
+                if !args.no_png {
+                    let png = path.with_extension("png");
+                    if *signed {
+                        image::write_png_signed(&png, img, scale)?;
+                    } else {
+                        image::write_png(&png, img)?;
+                    }
+                    written.push(png.display().to_string());
+                }
+            }
+            if r.invalid_samples > 0 {
+                eprintln!(
+                    "warning: {} samples were NaN or Inf and were dropped",
+                    r.invalid_samples
+                );
+            }
+            if r.fallbacks > 0 {
+                eprintln!(
+                    "warning: {} channel values could not be predicted (negative or not finite) and keep the source radiance",
+                    r.fallbacks
+                );
+            }
+            let a = &r.albedos;
+            let t = &r.timings;
+            println!(
+                "albedo {} -> {}; {} frames ({:.2} blended per pixel), {} spp each; c_beta {}",
+                fmt3(a.source),
+                fmt3(a.target),
+                r.frames_rendered,
+                r.mean_frames,
+                scene_data.spp,
+                r.c_beta.map_or("-".into(), |c| format!("{c:.4}")),
+            );
+            println!(
+                "seconds: target frame {:.2}, all frames {:.2}, c_beta fit {:.2}, denoise+predict {:.2}",
+                t.target_frame, t.frames, t.fit, t.denoise_and_predict
+            );
+            println!("wrote {}", written.join(", "));
+            Ok(())
+        }
     }
+}
+
+fn fmt3(v: Vec3) -> String {
+    format!("[{:.4}, {:.4}, {:.4}]", v.x, v.y, v.z)
+}
+
+fn parse_point(s: &str) -> Result<Vec3> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| anyhow!("--target {s}: expected three numbers x,y,z"))?;
+    match v[..] {
+        [x, y, z] => Ok(Vec3::new(x, y, z)),
+        _ => bail!("--target {s}: expected three numbers x,y,z"),
+    }
+}
+
+/// The first visible point through the film's centre: the default orbit centre.
+fn centre_point(scene: &Scene) -> Result<Vec3> {
+    let centre = glam::Vec2::new(scene.film.width as f32, scene.film.height as f32) * 0.5;
+    let ray = scene.camera.sample_ray(centre);
+    scene
+        .intersect(ray.o, ray.d, ray.tmax)
+        .map(|h| Vec3::from(h.p))
+        .ok_or_else(|| anyhow!("--orbit: the image centre sees no surface; give the orbit's centre with --target x,y,z"))
 }

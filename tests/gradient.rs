@@ -209,19 +209,7 @@ fn spatial_denoising_lowers_the_gradient_error() {
         width,
         &BilateralParams::default(),
     );
-    let mse = |img: &[[f32; 3]]| {
-        let n = (img.len() * 3) as f64;
-        img.iter()
-            .zip(&r.estimate.mean)
-            .zip(&r.estimate.var_mean)
-            .map(|((a, b), v)| {
-                (0..3)
-                    .map(|c| (a[c] as f64 - b[c]).powi(2) - v[c])
-                    .sum::<f64>()
-            })
-            .sum::<f64>()
-            / n
-    };
+    let mse = |img: &[[f32; 3]]| r.mse(img);
     let (raw, filtered) = (mse(&grad), mse(&denoised));
     println!("gradient MSE vs Mitsuba (reference variance subtracted): raw {raw:.3e}, denoised {filtered:.3e}");
     assert!(

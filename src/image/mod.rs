@@ -83,23 +83,50 @@ fn srgb_encode(v: f32) -> f32 {
 
 /// Writes an 8-bit sRGB PNG preview (clamped, no exposure change).
 pub fn write_png(path: &Path, img: &Image) -> Result<()> {
+    let data: Vec<u8> = img
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(|c| (srgb_encode(c.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8))
+        .collect();
+    write_png_bytes(path, img.width, img.height, &data)
+}
+
+/// The 99th percentile of |value| over all channels: the `scale` of a signed preview
+/// that few outliers saturate (1 for an all-zero image).
+pub fn signed_scale(img: &Image) -> f32 {
+    let mut v: Vec<f32> = img.pixels.iter().flatten().map(|c| c.abs()).collect();
+    if v.is_empty() {
+        return 1.0;
+    }
+    let k = ((v.len() - 1) as f64 * 0.99) as usize;
+    let (_, q, _) = v.select_nth_unstable_by(k, f32::total_cmp);
+    if *q > 0.0 && q.is_finite() {
+        *q
+    } else {
+        1.0
+    }
+}
+
+/// Writes a preview of a signed image (a derivative): each channel maps −scale → 0,
+/// 0 → mid grey, +scale → full, linearly in sRGB values.
+pub fn write_png_signed(path: &Path, img: &Image, scale: f32) -> Result<()> {
+    let data: Vec<u8> = img
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(|c| ((0.5 + 0.5 * c / scale).clamp(0.0, 1.0) * 255.0 + 0.5) as u8))
+        .collect();
+    write_png_bytes(path, img.width, img.height, &data)
+}
+
+fn write_png_bytes(path: &Path, width: usize, height: usize, data: &[u8]) -> Result<()> {
     let tmp = temp_path(path);
     let write = || -> Result<()> {
         let file = std::fs::File::create(&tmp)?;
-        let mut enc = png::Encoder::new(
-            std::io::BufWriter::new(file),
-            img.width as u32,
-            img.height as u32,
-        );
+        let mut enc = png::Encoder::new(std::io::BufWriter::new(file), width as u32, height as u32);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         let mut writer = enc.write_header()?;
-        let data: Vec<u8> = img
-            .pixels
-            .iter()
-            .flat_map(|p| p.map(|c| (srgb_encode(c.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8))
-            .collect();
-        writer.write_image_data(&data)?;
+        writer.write_image_data(data)?;
         writer.finish()?;
         Ok(())
     };

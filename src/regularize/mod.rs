@@ -2,7 +2,17 @@
 //! differentiable regularization"): render at a lower source albedo α_s, estimate
 //! d(radiance)/d(albedo) in the same paths (`integrator::volpath`, `Gradient::Albedo`),
 //! denoise the gradient, and predict the image at the target albedo α_t.
+//!
+//! `pipeline` runs the whole method; the steps are `sequence` (camera paths),
+//! `reproject` and `temporal` (Eq. 9–10), `spatial` (a still-image denoiser), `predict`
+//! (Eq. 11–12) and `fit` (c_β without a reference).
 
+pub mod fit;
+pub mod pipeline;
 pub mod predict;
+pub mod reproject;
+pub mod sequence;
 pub mod spatial;
 pub mod temporal;
+
+pub use pipeline::{regularize, CBeta, Method, Options, Regularized, Reproject};

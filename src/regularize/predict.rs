@@ -68,6 +68,10 @@ impl Predictor {
     fn channel(&self, r_s: f32, g_s: f32, alpha_s: f32, alpha_t: f32, sigma_t: f32) -> Option<f32> {
         let (r_s, g_s) = (r_s as f64, g_s as f64);
         let delta = alpha_t as f64 - alpha_s as f64;
+        if delta == 0.0 {
+            // No extrapolation (and no 0/0 in the log-linear form where R_s = 0).
+            return Some(r_s as f32).filter(|r| r.is_finite() && *r >= 0.0);
+        }
         let r_t = match *self {
             Predictor::Linear => r_s + g_s * delta,
             Predictor::LogLinear => r_s * (g_s / r_s * delta).exp(),
@@ -86,7 +90,9 @@ impl Predictor {
                 r_s + g_s * growth * damping
             }
         };
-        (r_t.is_finite() && r_t >= 0.0).then_some(r_t as f32)
+        // Checked after the cast: a value beyond f32's range is not finite either.
+        let r_t = r_t as f32;
+        (r_t.is_finite() && r_t >= 0.0).then_some(r_t)
     }
 
     /// Predicts every pixel; returns the image and how many values fell back to R_s.
@@ -192,6 +198,9 @@ mod tests {
             Predictor::LogLinear.predict(&a, &[[0.0; 3], [1e-30; 3]], &[[1.0; 3], [1e3; 3]]);
         assert!(img.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
         assert_eq!(fb, 6);
+        // Finite in f64 but beyond f32's range (e^{200}): falls back too.
+        let (img, fb) = Predictor::LogLinear.predict(&a, &[[1e-3; 3]], &[[200.0 * 1e-3 / 0.49; 3]]);
+        assert_eq!((img[0][0], fb), (1e-3, 3));
         // A negative linear prediction falls back to R_s.
         let (img, fb) = Predictor::Linear.predict(&a, &[[0.1; 3]], &[[-1.0; 3]]);
         assert_eq!((img[0][0], fb), (0.1, 3));

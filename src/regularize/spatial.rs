@@ -19,6 +19,10 @@ use crate::scene::Scene;
 pub struct Features {
     pub depth: Vec<f32>,
     pub normal: Vec<Vec3>,
+    /// The first visible point (meaningless where `depth` is ∞).
+    pub position: Vec<Vec3>,
+    /// The direction of the ray through the pixel centre.
+    pub direction: Vec<Vec3>,
 }
 
 /// One ray per pixel centre (null boundaries count: they are what the camera sees of a
@@ -27,25 +31,32 @@ pub fn first_hit_features(scene: &Scene) -> Features {
     let film = &scene.film;
     let (cw, ch) = film.crop_size;
     let (ox, oy) = film.crop_offset;
-    let mut depth = Vec::with_capacity(cw * ch);
-    let mut normal = Vec::with_capacity(cw * ch);
+    let mut f = Features {
+        depth: Vec::with_capacity(cw * ch),
+        normal: Vec::with_capacity(cw * ch),
+        position: Vec::with_capacity(cw * ch),
+        direction: Vec::with_capacity(cw * ch),
+    };
     for y in 0..ch {
         for x in 0..cw {
             let pos = Vec2::new((x + ox) as f32 + 0.5, (y + oy) as f32 + 0.5);
             let ray = scene.camera.sample_ray(pos);
+            f.direction.push(Vec3::from(ray.d));
             match scene.intersect(ray.o, ray.d, ray.tmax) {
                 Some(h) => {
-                    depth.push(h.t);
-                    normal.push(Vec3::from(h.sh_frame.n));
+                    f.depth.push(h.t);
+                    f.normal.push(Vec3::from(h.sh_frame.n));
+                    f.position.push(Vec3::from(h.p));
                 }
                 None => {
-                    depth.push(f32::INFINITY);
-                    normal.push(Vec3::ZERO);
+                    f.depth.push(f32::INFINITY);
+                    f.normal.push(Vec3::ZERO);
+                    f.position.push(Vec3::ZERO);
                 }
             }
         }
     }
-    Features { depth, normal }
+    f
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -139,6 +150,8 @@ mod tests {
         let mut features = Features {
             depth: Vec::new(),
             normal: Vec::new(),
+            position: Vec::new(),
+            direction: Vec::new(),
         };
         for _y in 0..h {
             for x in 0..w {
@@ -177,6 +190,8 @@ mod tests {
         let f = Features {
             depth: (0..w * h).map(|i| 1.0 + i as f32 * 0.1).collect(),
             normal: vec![Vec3::Y; w * h],
+            position: vec![Vec3::ZERO; w * h],
+            direction: vec![Vec3::Z; w * h],
         };
         let out = denoise(
             &g,

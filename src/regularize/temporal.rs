@@ -34,7 +34,10 @@ fn bilinear(img: &[[f32; 3]], width: usize, height: usize, (x, y): (f32, f32)) -
     let (fx, fy) = (x - 0.5, y - 0.5);
     let (x0, y0) = (fx.floor().max(0.0) as usize, fy.floor().max(0.0) as usize);
     let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
-    let (tx, ty) = (fx - x0 as f32, fy - y0 as f32);
+    let (tx, ty) = (
+        (fx - x0 as f32).clamp(0.0, 1.0),
+        (fy - y0 as f32).clamp(0.0, 1.0),
+    );
     let at = |x: usize, y: usize| img[y * width + x];
     [0, 1, 2].map(|c| {
         let top = at(x0, y0)[c] * (1.0 - tx) + at(x1, y0)[c] * tx;

@@ -80,6 +80,39 @@ impl PerspectiveCamera {
         let len = dw.length();
         Ray::new(o, dw / len, (far_t - near_t) * len)
     }
+
+    /// The film position (pixels, relative to the full film's top-left) that sees the
+    /// camera-space direction `d`: the inverse of `sample_ray`. `None` behind the camera.
+    #[inline]
+    fn film_position_of_local(&self, d: Vec3A) -> Option<Vec2> {
+        if d.z <= 0.0 {
+            return None;
+        }
+        let (x, y) = (d.x / d.z, d.y / d.z);
+        let s = Vec2::new(
+            0.5 * (1.0 - x / self.tan_half_fov_x),
+            0.5 * (1.0 - y * self.aspect / self.tan_half_fov_x),
+        );
+        Some((s - self.principal_point_offset) * self.film_size)
+    }
+
+    /// Where the world point `p` appears on the film (pixels from the full film's
+    /// top-left; may lie outside the film). `None` when `p` is behind the camera.
+    pub fn project_point(&self, p: Vec3A) -> Option<Vec2> {
+        let local = self.to_world.inverse().transform_point3a(p);
+        self.film_position_of_local(local)
+    }
+
+    /// Where a point at infinity in world direction `d` appears on the film.
+    pub fn project_direction(&self, d: Vec3A) -> Option<Vec2> {
+        let local = self.to_world.inverse().transform_vector3a(d);
+        self.film_position_of_local(local)
+    }
+
+    /// The camera's centre of projection in world space.
+    pub fn origin(&self) -> Vec3A {
+        self.to_world.transform_point3a(Vec3A::ZERO)
+    }
 }
 
 #[cfg(test)]
@@ -96,6 +129,38 @@ mod tests {
             fov_x_degrees(40.0, "y", 2.0)
         );
         assert!(fov_x_degrees(40.0, "z", 2.0).is_none());
+    }
+
+    /// `project_point` inverts `sample_ray`, with a rotated, translated, scaled camera and
+    /// a principal point offset.
+    #[test]
+    fn projection_inverts_sample_ray() {
+        let cam = PerspectiveCamera {
+            to_world: Mat4::from_translation(glam::Vec3::new(1.0, -2.0, 0.5))
+                * Mat4::from_rotation_y(0.7)
+                * Mat4::from_rotation_x(-0.3),
+            tan_half_fov_x: 0.6,
+            aspect: 1.5,
+            near_clip: 0.01,
+            far_clip: 100.0,
+            principal_point_offset: Vec2::new(0.05, -0.02),
+            film_size: Vec2::new(96.0, 64.0),
+        };
+        for pos in [
+            Vec2::new(0.5, 0.5),
+            Vec2::new(47.3, 12.9),
+            Vec2::new(95.5, 63.5),
+        ] {
+            let r = cam.sample_ray(pos);
+            let p = r.o + r.d * 3.7;
+            let back = cam.project_point(p).unwrap();
+            assert!((back - pos).length() < 1e-3, "{pos} → {back}");
+            let back = cam.project_direction(r.d).unwrap();
+            assert!((back - pos).length() < 1e-3, "{pos} → {back}");
+        }
+        assert!(cam
+            .project_point(cam.origin() - cam.sample_ray(Vec2::new(9.0, 9.0)).d)
+            .is_none());
     }
 
     #[test]

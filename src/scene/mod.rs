@@ -75,6 +75,39 @@ pub struct SurfaceInteraction {
 }
 
 impl Scene {
+    /// The medium a derivative refers to: the one whose XML id is `name`, or the only
+    /// one. The error names the choices.
+    pub fn medium_index(&self, name: Option<&str>) -> Result<u32, String> {
+        let ids: Vec<String> = self
+            .media
+            .iter()
+            .enumerate()
+            .map(|(i, m)| m.id.clone().unwrap_or_else(|| format!("(unnamed #{i})")))
+            .collect();
+        match name {
+            Some(n) => self
+                .media
+                .iter()
+                .position(|m| m.id.as_deref() == Some(n))
+                .map(|i| i as u32)
+                .ok_or_else(|| {
+                    format!(
+                        "--medium {n}: no medium has that id; the scene's media: {}",
+                        ids.join(", ")
+                    )
+                }),
+            None => match self.media.len() {
+                0 => Err("the scene has no medium".into()),
+                1 => Ok(0),
+                _ => Err(format!(
+                    "the scene has {} media, name one with --medium ID: {}",
+                    ids.len(),
+                    ids.join(", ")
+                )),
+            },
+        }
+    }
+
     #[inline]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<SurfaceInteraction> {
         let hit = self.accel.intersect(&self.geometries, o, d, tmax)?;

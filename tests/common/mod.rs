@@ -100,6 +100,25 @@ pub struct Reference {
     pub json: serde_json::Value,
 }
 
+impl Reference {
+    /// Mean squared error of `img` against the reference over pixels and channels, with
+    /// the reference's own variance of the mean subtracted (an unbiased estimate of the
+    /// error against the true image).
+    pub fn mse(&self, img: &[[f32; 3]]) -> f64 {
+        let n = (img.len() * 3) as f64;
+        img.iter()
+            .zip(&self.estimate.mean)
+            .zip(&self.estimate.var_mean)
+            .map(|((a, b), v)| {
+                (0..3)
+                    .map(|c| (a[c] as f64 - b[c]).powi(2) - v[c])
+                    .sum::<f64>()
+            })
+            .sum::<f64>()
+            / n
+    }
+}
+
 /// Loads reference/NAME.{exr,_var.exr,json} and fails if the scene or any asset no
 /// longer hashes to what the reference was made from.
 pub fn reference(name: &str, scene: &Path) -> Reference {

@@ -1,0 +1,349 @@
+//! The whole method, as `mediareg regularize` runs it:
+//!
+//! 1. set the medium's albedo to α_s = factor · α_t (α_t from the scene file);
+//! 2. render the camera sequence at α_s, radiance and d(radiance)/d(albedo), frame k with
+//!    seed + k so that frames have independent noise;
+//! 3. reproject the earlier frames' gradients into the target frame and blend them
+//!    (Eq. 10), then optionally filter spatially; the radiance is never denoised;
+//! 4. predict the target-albedo image (Eq. 11–12 or a baseline), with c_β given or
+//!    fitted to a cheap render (`fit`).
+
+use std::time::Instant;
+
+use glam::{Vec3, Vec3A};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::fit::fit_c_beta;
+use super::predict::{Albedos, Predictor};
+use super::reproject;
+use super::sequence::CameraPath;
+use super::spatial::{self, BilateralParams};
+use super::temporal::{self, Reprojection};
+use crate::error::SceneError;
+use crate::integrator::volpath::Gradient;
+use crate::integrator::{render_with, Image, RenderOptions};
+use crate::scene::{IntegratorKind, Scene};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reproject {
+    /// Through each pixel's first visible point, with disocclusion.
+    Exact,
+    /// One screen-space motion per frame (the paper's Eq. 9).
+    Shift,
+    /// Frames are blended pixel for pixel (right only for a static camera).
+    None,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CBeta {
+    Fixed(f32),
+    /// Fitted to a render at α_f = α_s + `at` · (α_t − α_s) with `spp` samples per pixel.
+    Fit {
+        spp: u32,
+        at: f32,
+    },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Method {
+    Paper(CBeta),
+    Linear,
+    LogLinear,
+}
+
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub medium: u32,
+    /// α_s = factor · α_t.
+    pub factor: f32,
+    /// N: the target frame and N − 1 earlier ones.
+    pub frames: usize,
+    pub w_a: f64,
+    pub path: CameraPath,
+    pub reproject: Reproject,
+    pub spatial: Option<BilateralParams>,
+    pub method: Method,
+    pub show_progress: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            medium: 0,
+            factor: 0.95,
+            frames: 11,
+            w_a: 0.1,
+            path: CameraPath::Static,
+            reproject: Reproject::Exact,
+            spatial: None,
+            method: Method::Paper(CBeta::Fixed(0.5)),
+            show_progress: false,
+        }
+    }
+}
+
+/// Seconds spent in each step.
+#[derive(Clone, Debug, Default)]
+pub struct Timings {
+    /// The target frame's render (what one frame of a sequence costs).
+    pub target_frame: f64,
+    /// All frames of the sequence.
+    pub frames: f64,
+    /// The cheap render c_β is fitted to, and the fit.
+    pub fit: f64,
+    /// Reprojection, blending, spatial filter and prediction.
+    pub denoise_and_predict: f64,
+}
+
+pub struct Regularized {
+    /// The prediction at the target albedo.
+    pub predicted: Image,
+    /// The target frame rendered at the source albedo.
+    pub source: Image,
+    pub raw_gradient: Image,
+    pub gradient: Image,
+    pub albedos: Albedos,
+    /// The c_β used (the paper's predictor only).
+    pub c_beta: Option<f32>,
+    /// Channel values that could not be predicted and kept R_s (predict.rs).
+    pub fallbacks: usize,
+    /// Frames blended per pixel, averaged over the image.
+    pub mean_frames: f64,
+    pub frames_rendered: usize,
+    pub timings: Timings,
+    /// Samples or gradient values that were NaN or Inf and were dropped.
+    pub invalid_samples: u64,
+}
+
+fn bad(msg: String) -> SceneError {
+    SceneError::new(None, msg)
+}
+
+/// Runs the method on `scene` (its camera is the target frame; it is restored before
+/// returning, as is the medium's albedo).
+pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, SceneError> {
+    if scene.integrator.kind != IntegratorKind::Volpath {
+        return Err(bad(
+            "regularize needs the volpath integrator (the scene uses path, which ignores media)"
+                .into(),
+        ));
+    }
+    let m = opts.medium as usize;
+    if m >= scene.media.len() {
+        return Err(bad(format!("no medium #{m}")));
+    }
+    if !(opts.factor > 0.0 && opts.factor <= 1.0) {
+        return Err(bad(format!(
+            "--factor {} must lie in (0, 1]: the source albedo is factor × the scene's",
+            opts.factor
+        )));
+    }
+    if opts.frames == 0 || !(opts.w_a > 0.0 && opts.w_a <= 1.0) {
+        return Err(bad(format!(
+            "--frames {} must be at least 1 and --wa {} in (0, 1]",
+            opts.frames, opts.w_a
+        )));
+    }
+    let target_albedo = scene.media[m].albedo;
+    let sigma_t = scene.media[m].sigma_t;
+    let albedos = Albedos {
+        source: target_albedo * opts.factor,
+        target: target_albedo,
+        sigma_t,
+    };
+    let predictor = match opts.method {
+        Method::Paper(CBeta::Fixed(c_beta)) => Some(Predictor::Paper { c_beta }),
+        Method::Paper(CBeta::Fit { .. }) => None,
+        Method::Linear => Some(Predictor::Linear),
+        Method::LogLinear => Some(Predictor::LogLinear),
+    };
+    match predictor {
+        Some(p) => p.validate(&albedos)?,
+        // Any valid c_β will do to check the albedos; the fit picks one in range.
+        None => Predictor::Linear.validate(&albedos)?,
+    }
+    if let Method::Paper(CBeta::Fit { spp, at }) = opts.method {
+        if spp == 0 || !(at > 0.0 && at <= 1.0) {
+            return Err(bad(format!(
+                "the c_beta fit needs at least 1 spp and an albedo between source and target (at = {at} must lie in (0, 1])"
+            )));
+        }
+        if (albedos.target - albedos.source).max_element() <= 0.0 {
+            return Err(bad(
+                "--c-beta fit: source and target albedo are equal (factor 1), nothing to fit"
+                    .into(),
+            ));
+        }
+    }
+
+    let camera0 = scene.camera.clone();
+    let seed0 = scene.seed;
+    let frames = opts.path.frames(camera0.to_world, opts.frames);
+    let n = frames.len();
+    let fit_steps = matches!(opts.method, Method::Paper(CBeta::Fit { .. })) as u64;
+    let bar = if opts.show_progress {
+        let b = ProgressBar::new(n as u64 + fit_steps);
+        b.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} frames  ETA {eta}  {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+
+    let render_frame = |scene: &mut Scene, to_world, seed, albedo: Vec3, spp: Option<u32>| {
+        scene.camera.to_world = to_world;
+        scene.seed = seed;
+        scene.media[m].albedo = albedo;
+        let saved_spp = scene.spp;
+        if let Some(s) = spp {
+            scene.spp = s;
+        }
+        let r = render_with(
+            scene,
+            &RenderOptions {
+                show_progress: false,
+                gradient: Gradient::Albedo(opts.medium),
+            },
+        );
+        scene.spp = saved_spp;
+        r
+    };
+
+    // Step 2: the sequence, earliest frame first.
+    let mut timings = Timings::default();
+    let mut gradients: Vec<Image> = Vec::with_capacity(n);
+    let mut source = None;
+    let mut invalid_samples = 0;
+    for k in (0..n).rev() {
+        bar.set_message(format!("frame k = {k}"));
+        let r = render_frame(
+            scene,
+            frames[k],
+            seed0.wrapping_add(k as u64),
+            albedos.source,
+            None,
+        );
+        timings.frames += r.stats.seconds;
+        invalid_samples += r.stats.invalid_samples;
+        if k == 0 {
+            timings.target_frame = r.stats.seconds;
+            source = Some(r.image);
+        }
+        gradients.push(r.gradient.expect("a gradient was asked for"));
+        bar.inc(1);
+    }
+    gradients.reverse();
+    let source = source.expect("frame 0 is rendered");
+
+    // Step 3: reproject, blend, filter — all in the target frame.
+    let start = Instant::now();
+    scene.camera = camera0.clone();
+    scene.seed = seed0;
+    let features = spatial::first_hit_features(scene);
+    let (w, h) = (source.width, source.height);
+    let maps: Vec<Reprojection> = (1..n)
+        .map(|k| {
+            let mut cam = camera0.clone();
+            cam.to_world = frames[k];
+            match opts.reproject {
+                Reproject::None => temporal::screen_shift(w, h, 0.0, 0.0),
+                Reproject::Exact => reproject::exact(scene, &features, &cam),
+                Reproject::Shift => {
+                    let point = motion_point(&opts.path, &features, w, h);
+                    match reproject::screen_motion(&camera0, &cam, point) {
+                        Some((dx, dy)) => temporal::screen_shift(w, h, dx, dy),
+                        None => vec![None; w * h],
+                    }
+                }
+            }
+        })
+        .collect();
+    let mean_frames = 1.0
+        + maps
+            .iter()
+            .map(|m| m.iter().filter(|p| p.is_some()).count() as f64)
+            .sum::<f64>()
+            / (w * h) as f64;
+    let frame_refs: Vec<&[[f32; 3]]> = gradients.iter().map(|g| g.pixels.as_slice()).collect();
+    let mut denoised = temporal::blend(&frame_refs, &maps, w, h, opts.w_a);
+    if let Some(params) = &opts.spatial {
+        denoised = spatial::denoise(&denoised, &source.pixels, &features, w, params);
+    }
+    timings.denoise_and_predict = start.elapsed().as_secs_f64();
+
+    // Step 4: c_β, then the prediction.
+    let predictor = match (predictor, opts.method) {
+        (Some(p), _) => p,
+        (None, Method::Paper(CBeta::Fit { spp, at })) => {
+            bar.set_message("fitting c_beta");
+            let fit_albedo = albedos.source + (albedos.target - albedos.source) * at;
+            // A seed no frame of the sequence uses.
+            let cheap = render_frame(
+                scene,
+                camera0.to_world,
+                seed0.wrapping_add(n as u64 + 1_000_003),
+                fit_albedo,
+                Some(spp),
+            );
+            invalid_samples += cheap.stats.invalid_samples;
+            let start = Instant::now();
+            let fit = Albedos {
+                target: fit_albedo,
+                ..albedos
+            };
+            let c_beta = fit_c_beta(&fit, &source.pixels, &denoised, &cheap.image.pixels);
+            timings.fit = cheap.stats.seconds + start.elapsed().as_secs_f64();
+            bar.inc(1);
+            Predictor::Paper { c_beta }
+        }
+        (None, _) => unreachable!("only a fitted c_beta leaves the predictor open"),
+    };
+    let start = Instant::now();
+    let (predicted, fallbacks) = predictor.predict(&albedos, &source.pixels, &denoised);
+    timings.denoise_and_predict += start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+
+    // Restore the scene as it came.
+    scene.camera = camera0;
+    scene.seed = seed0;
+    scene.media[m].albedo = target_albedo;
+
+    let image = |pixels| Image {
+        width: w,
+        height: h,
+        pixels,
+    };
+    let c_beta = match predictor {
+        Predictor::Paper { c_beta } => Some(c_beta),
+        _ => None,
+    };
+    Ok(Regularized {
+        predicted: image(predicted),
+        raw_gradient: gradients.swap_remove(0),
+        gradient: image(denoised),
+        source,
+        albedos,
+        c_beta,
+        fallbacks,
+        mean_frames,
+        frames_rendered: n,
+        timings,
+        invalid_samples,
+    })
+}
+
+/// The point whose screen motion is Eq. 9's motion vector: the orbit's target, else
+/// the first visible point at the image centre (a point 1 unit along its ray if none).
+fn motion_point(path: &CameraPath, f: &spatial::Features, w: usize, h: usize) -> Vec3A {
+    if let CameraPath::Orbit { target, .. } = path {
+        return Vec3A::from(*target);
+    }
+    let i = (h / 2) * w + w / 2;
+    if f.depth[i].is_finite() {
+        Vec3A::from(f.position[i])
+    } else {
+        Vec3A::from(f.position[i] + f.direction[i])
+    }
+}
