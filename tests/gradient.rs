@@ -37,7 +37,17 @@ fn render(
     seed: u64,
     gradient: Gradient,
 ) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
-    let s = load_seeded(&cube(), params, spp, seed);
+    render_scene(&cube(), params, spp, seed, gradient)
+}
+
+fn render_scene(
+    scene: &std::path::Path,
+    params: &[(&str, &str)],
+    spp: u32,
+    seed: u64,
+    gradient: Gradient,
+) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
+    let s = load_seeded(scene, params, spp, seed);
     let r = render_with(
         &s,
         &RenderOptions {
@@ -48,31 +58,40 @@ fn render(
     (r.image.pixels, r.gradient.map(|g| g.pixels))
 }
 
-#[test]
-fn gradient_matches_finite_differences_with_common_random_numbers() {
-    let (alpha, h, k_max) = (0.95f64, 0.01f64, 12.0f64);
-    let render_at = |a: f64, gradient| {
-        let a = a.to_string();
-        render(
-            &[("albedo", &a), ("max_depth", "12"), ("rr_depth", "100")],
-            16,
-            3,
-            gradient,
-        )
+/// Central differences at albedo α ± h (every channel moved by h) against the gradient
+/// at α, with common random numbers: `scene` must turn Russian roulette off and set its
+/// albedo through `$albedo`; `alpha` per channel, `k_max` its max_depth.
+fn check_finite_differences(
+    scene: &std::path::Path,
+    extra: &[(&str, &str)],
+    alpha: [f64; 3],
+    k_max: f64,
+) {
+    let h = 0.01f64;
+    let render_at = |shift: f64, gradient| {
+        // One number for a grey albedo (a <float> in the scene), three for an <rgb>.
+        let a = if alpha.iter().all(|&a| a == alpha[0]) {
+            (alpha[0] + shift).to_string()
+        } else {
+            alpha.map(|a| (a + shift).to_string()).join(", ")
+        };
+        let mut params = vec![("albedo", a.as_str())];
+        params.extend(extra);
+        render_scene(scene, &params, 16, 3, gradient)
     };
-    let (plus, _) = render_at(alpha + h, Gradient::None);
-    let (minus, _) = render_at(alpha - h, Gradient::None);
-    let (_, grad) = render_at(alpha, Gradient::Albedo(0));
+    let (plus, _) = render_at(h, Gradient::None);
+    let (minus, _) = render_at(-h, Gradient::None);
+    let (_, grad) = render_at(0.0, Gradient::Albedo(0));
     let grad = grad.unwrap();
-    // Truncation: Σ c_k [C(k,3) α^{k−3} h² + …] ≤ G (K−1)(K−2)/6 · h²/α² (1 + 1%).
-    let trunc = (k_max - 1.0) * (k_max - 2.0) / 6.0 * h * h / (alpha * alpha) * 1.01;
-    // Rounding: each render's pixel is exact to ~1e-5 relative (f32 path arithmetic and
-    // accumulation), and the difference is divided by 2h.
-    let round = 1e-5 / (2.0 * h);
     let mut worst = 0.0f64;
     let mut nonzero = 0;
     for i in 0..grad.len() {
         for c in 0..3 {
+            // Truncation: Σ c_k [C(k,3) α^{k−3} h² + …] ≤ G (K−1)(K−2)/6 · h²/α² (1 + 1%).
+            let trunc = (k_max - 1.0) * (k_max - 2.0) / 6.0 * h * h / (alpha[c] * alpha[c]) * 1.01;
+            // Rounding: each render's pixel is exact to ~1e-5 relative (f32 path arithmetic
+            // and accumulation), and the difference is divided by 2h.
+            let round = 1e-5 / (2.0 * h);
             let fd = (plus[i][c] as f64 - minus[i][c] as f64) / (2.0 * h);
             let g = grad[i][c] as f64;
             let tol = g.abs() * trunc + round * (plus[i][c].abs() + minus[i][c].abs()) as f64;
@@ -89,6 +108,28 @@ fn gradient_matches_finite_differences_with_common_random_numbers() {
     }
     assert!(nonzero > grad.len(), "the gradient image is (nearly) empty");
     println!("largest |FD − G| / tolerance: {worst:.3}");
+}
+
+#[test]
+fn gradient_matches_finite_differences_with_common_random_numbers() {
+    check_finite_differences(
+        &cube(),
+        &[("max_depth", "12"), ("rr_depth", "100")],
+        [0.95; 3],
+        12.0,
+    );
+}
+
+/// The same for a chromatic medium around the camera (spectral MIS over channels, RGB
+/// albedo) with emitters inside it and a surface in it.
+#[test]
+fn gradient_matches_finite_differences_in_a_chromatic_medium_with_emitters_inside() {
+    check_finite_differences(
+        &root().join("tests/fixtures/gradient_chromatic.xml"),
+        &[],
+        [0.9, 0.7, 0.95],
+        12.0,
+    );
 }
 
 fn check(gradient: Gradient, scale: f32, seed: u64) -> Comparison {

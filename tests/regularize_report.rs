@@ -33,6 +33,21 @@ struct Row {
     c_beta: Vec<Option<f32>>,
 }
 
+/// A ratio for the table: two decimals, or powers of ten when it explodes.
+fn ratio(r: f64) -> String {
+    if r < 100.0 {
+        format!("{r:.2}")
+    } else {
+        format!("{r:.1e}")
+    }
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
@@ -115,8 +130,10 @@ fn regularize_cube_report() {
 
     let mut rows: Vec<Row> = Vec::new();
     let mut plain_rows: Vec<Row> = Vec::new();
-    // c_β chosen with the reference (best on the grid) against the fit, per variant.
+    // For the fitted variants: c_β chosen with the reference (best on a grid) on the same renders.
     let mut sweeps = Vec::new();
+    // Warm up (thread pool, caches) so that the first timed render is not slower.
+    mediareg::integrator::render(&load_seeded(&cube, &[], 64, 0), false);
     for spp in [64u32, 256] {
         // Plain volpath at the target albedo: its MSE and seconds per sample.
         let mut plain = Row {
@@ -133,7 +150,8 @@ fn regularize_cube_report() {
             plain.seconds.push(stats.seconds);
             plain.mse.push(r.mse(&img.pixels));
         }
-        let plain_seconds = mean(&plain.seconds);
+        // The median: robust to a stray slow render.
+        let plain_seconds = median(&plain.seconds);
         let equal_time = |seconds: f64, seed: u64| {
             let spp_eq = ((spp as f64 * seconds / plain_seconds).round() as u32).max(1);
             let s = load_seeded(&cube, &[], spp_eq, seed + 1000);
@@ -158,7 +176,7 @@ fn regularize_cube_report() {
                 row.mse.push(r.mse(&out.predicted.pixels));
                 row.c_beta.push(out.c_beta);
                 row.plain_equal_time.push(equal_time(seconds, seed));
-                if matches!(opts.method, Method::Paper(CBeta::Fixed(_))) {
+                if matches!(opts.method, Method::Paper(CBeta::Fit { .. })) {
                     for (j, &c_beta) in C_BETA_GRID.iter().enumerate() {
                         let (img, _) = Predictor::Paper { c_beta }.predict(
                             &out.albedos,
@@ -176,14 +194,16 @@ fn regularize_cube_report() {
                 mean(&row.seconds),
                 row.c_beta
             );
-            if matches!(opts.method, Method::Paper(CBeta::Fixed(_))) {
+            if matches!(opts.method, Method::Paper(CBeta::Fit { .. })) {
                 let best = (0..C_BETA_GRID.len())
                     .min_by(|&a, &b| sweep_mse[a].total_cmp(&sweep_mse[b]))
                     .unwrap();
+                let paper_default = C_BETA_GRID.iter().position(|&c| c == 0.5).unwrap();
                 sweeps.push(json!({
                     "variant": name, "spp": spp,
                     "grid": C_BETA_GRID, "mse": sweep_mse,
                     "best_c_beta": C_BETA_GRID[best], "best_mse": sweep_mse[best],
+                    "c_beta_0.5_mse": sweep_mse[paper_default], "fit_mse": mean(&row.mse),
                 }));
             }
             rows.push(row);
@@ -198,7 +218,7 @@ fn regularize_cube_report() {
         "# Regularization on the cube (σ_t 10, albedo 0.95, g 0.7, factor 0.95)\n"
     )
     .unwrap();
-    writeln!(md, "Made by `cargo test --release --test regularize_report -- --ignored --nocapture` (tests/regularize_report.rs): 64×64, box filter, {} seeds per cell, 2 threads; MSE against reference/medium_cube (Mitsuba 3.9.1, 8192 spp) with the reference's variance subtracted. Seconds per target frame: its render, plus denoising, prediction and the c_β fit's render; the plain render at equal time gets those seconds.\n", SEEDS.len()).unwrap();
+    writeln!(md, "Made by `cargo test --release --test regularize_report -- --ignored --nocapture` (tests/regularize_report.rs): 64×64, box filter, {} seeds per cell, 2 threads, after a warm-up render; MSE against reference/medium_cube (Mitsuba 3.9.1, 8192 spp) with the reference's variance subtracted. Seconds per target frame: its render, plus denoising, prediction and the c_β fit's render; the plain render at equal time gets those seconds (its spp scaled by the median seconds of the plain renders at this spp).\n", SEEDS.len()).unwrap();
     writeln!(
         md,
         "| spp | method | seconds | MSE | plain volpath at equal time | ratio | c_β |"
@@ -222,34 +242,39 @@ fn regularize_cube_report() {
                 .collect();
             writeln!(
                 md,
-                "| {} | {} | {:.3} | {:.3e} | {:.3e} | {:.2} | {} |",
+                "| {} | {} | {:.3} | {:.3e} | {:.3e} | {} | {} |",
                 row.spp,
                 row.variant,
                 mean(&row.seconds),
                 mean(&row.mse),
                 mean(&row.plain_equal_time),
-                mean(&row.mse) / mean(&row.plain_equal_time),
+                ratio(mean(&row.mse) / mean(&row.plain_equal_time)),
                 cb.join(", ")
             )
             .unwrap();
         }
     }
+    writeln!(md, "\nThe fitted c_β against the c_β chosen with the reference (the best of {:?} on the same renders, mean MSE over seeds):\n", C_BETA_GRID).unwrap();
     writeln!(
         md,
-        "\nc_β chosen with the reference (the best of {:?}, mean MSE over seeds):\n",
-        C_BETA_GRID
+        "| spp | variant | best c_β | its MSE | fitted c_β's MSE | c_β 0.5's MSE |"
     )
     .unwrap();
-    writeln!(md, "| spp | variant | best c_β | its MSE |").unwrap();
-    writeln!(md, "|---|---|---|---|").unwrap();
+    writeln!(md, "|---|---|---|---|---|---|").unwrap();
     for s in &sweeps {
+        let best = s["best_mse"].as_f64().unwrap();
+        let f = |key: &str| {
+            let v = s[key].as_f64().unwrap();
+            format!("{v:.3e} ({:+.0}%)", 100.0 * (v / best - 1.0))
+        };
         writeln!(
             md,
-            "| {} | {} | {} | {:.3e} |",
+            "| {} | {} | {} | {best:.3e} | {} | {} |",
             s["spp"],
             s["variant"].as_str().unwrap(),
             s["best_c_beta"],
-            s["best_mse"].as_f64().unwrap()
+            f("fit_mse"),
+            f("c_beta_0.5_mse"),
         )
         .unwrap();
     }
