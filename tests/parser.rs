@@ -9,6 +9,8 @@
 //!
 //! Each test writes its scene into its own folder under `std::env::temp_dir()`.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec3, Vec3};
@@ -23,27 +25,14 @@ use mediareg::xml::description::{ObjectKind, SceneDescription, Value};
 use mediareg::xml::{load_file, LoadOptions};
 use mediareg::BuildOverrides;
 
+use common::scene_text::{self, build_desc, load_or_build_error, prop, write, SENSOR};
+
 // ---------------------------------------------------------------------------------------
 // Helpers
 // ---------------------------------------------------------------------------------------
 
-/// A fresh, empty folder for one test's files.
 fn tmp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir()
-        .join(format!("mediareg_parser_{}", std::process::id()))
-        .join(tag);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    if let Some(parent) = p.parent() {
-        std::fs::create_dir_all(parent).unwrap();
-    }
-    std::fs::write(&p, text).unwrap();
-    p
+    scene_text::tmp_dir("parser", tag)
 }
 
 fn fixture(name: &str) -> PathBuf {
@@ -52,38 +41,14 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
-fn opts(params: &[(&str, &str)]) -> LoadOptions {
-    LoadOptions {
-        params: params
-            .iter()
-            .map(|(k, v)| (k.to_string(), v.to_string()))
-            .collect(),
-        search_dirs: vec![],
-    }
-}
-
-/// Loads `<scene version="3.0.0">{body}</scene>` written to a temp file.
+/// Loads `<scene version="3.0.0">{body}</scene>` (body on its own lines) from a temp file.
 fn load_with(tag: &str, body: &str, params: &[(&str, &str)]) -> Result<SceneDescription, String> {
-    let dir = tmp_dir(tag);
-    let path = write(
-        &dir,
-        "scene.xml",
-        &format!("<scene version=\"3.0.0\">\n{body}\n</scene>\n"),
-    );
-    load_file(&path, &opts(params)).map_err(|e| e.to_string())
+    let text = format!("<scene version=\"3.0.0\">\n{body}\n</scene>\n");
+    scene_text::load_text("parser", tag, &text, params)
 }
 
 fn load(tag: &str, body: &str) -> SceneDescription {
     load_with(tag, body, &[]).unwrap_or_else(|e| panic!("{tag}: load failed:\n{e}"))
-}
-
-/// A small sensor, for scenes whose sensor is not under test (build needs one).
-const SENSOR: &str = r#"<sensor type="perspective"><float name="fov" value="40"/>
-    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="4"/></film></sensor>"#;
-
-fn build_desc(tag: &str, desc: &SceneDescription) -> Scene {
-    build_scene(desc, &BuildOverrides::default())
-        .unwrap_or_else(|e| panic!("{tag}: build failed:\n{e}"))
 }
 
 /// Loads and builds `body` plus the default sensor.
@@ -100,24 +65,7 @@ fn build_raw(tag: &str, body: &str) -> Scene {
 
 /// The error of loading or building `body` (plus the default sensor).
 fn build_err(tag: &str, body: &str) -> String {
-    match load_with(tag, &format!("{SENSOR}\n{body}"), &[]) {
-        Err(e) => e,
-        Ok(desc) => match build_scene(&desc, &BuildOverrides::default()) {
-            Err(e) => e.to_string(),
-            Ok(_) => panic!("{tag}: expected an error (Mitsuba 3 refuses this scene)"),
-        },
-    }
-}
-
-/// The value of property `name` on the first object of `kind` that has it.
-fn prop<'a>(desc: &'a SceneDescription, kind: ObjectKind, name: &str) -> &'a Value {
-    desc.objects
-        .iter()
-        .filter(|o| o.kind == kind)
-        .flat_map(|o| o.props.iter())
-        .find(|p| p.name == name)
-        .map(|p| &p.value)
-        .unwrap_or_else(|| panic!("no property \"{name}\" on any <{}>", kind.tag()))
+    load_or_build_error(tag, load_with(tag, &format!("{SENSOR}\n{body}"), &[]))
 }
 
 /// |a − b| ≤ tol · max(1, |b|): relative for large values, absolute near zero.

@@ -1,7 +1,9 @@
 //! The XML loader and scene builder, item by item, each test asserting built values.
 //! Transform matrices against real Mitsuba 3 are checked in tests/parser.rs.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::PathBuf;
 
 use glam::{DVec3, Vec3};
 use mediareg::bsdf::Bsdf;
@@ -14,62 +16,25 @@ use mediareg::xml::description::{ObjectKind, SceneDescription, Value};
 use mediareg::xml::{load_file, LoadOptions};
 use mediareg::BuildOverrides;
 
-/// A fresh folder for one test's files.
+use common::scene_text::{self, build_desc, load_or_build_error, prop, write, SENSOR};
+
 fn tmp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("mediareg_xml_{}_{tag}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    scene_text::tmp_dir("xml", tag)
 }
 
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
-const SENSOR: &str = r#"<sensor type="perspective"><float name="fov" value="40"/>
-    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="4"/></film></sensor>"#;
-
+/// Loads `<scene version="3.0.0">{body}</scene>`, all on line 1, from a temp file.
 fn load(tag: &str, body: &str, params: &[(&str, &str)]) -> Result<SceneDescription, String> {
-    let dir = tmp_dir(tag);
-    let path = write(
-        &dir,
-        "scene.xml",
-        &format!("<scene version=\"3.0.0\">{body}</scene>"),
-    );
-    let opts = LoadOptions {
-        params: params
-            .iter()
-            .map(|(k, v)| (k.to_string(), v.to_string()))
-            .collect(),
-        search_dirs: vec![],
-    };
-    load_file(&path, &opts).map_err(|e| e.to_string())
+    let text = format!("<scene version=\"3.0.0\">{body}</scene>");
+    scene_text::load_text("xml", tag, &text, params)
 }
 
 fn build(tag: &str, body: &str) -> Scene {
     let desc = load(tag, &format!("{SENSOR}{body}"), &[]).unwrap_or_else(|e| panic!("{e}"));
-    build_scene(&desc, &BuildOverrides::default()).unwrap_or_else(|e| panic!("{e}"))
+    build_desc(tag, &desc)
 }
 
 fn build_err(tag: &str, body: &str) -> String {
-    match load(tag, &format!("{SENSOR}{body}"), &[]) {
-        Err(e) => e,
-        Ok(desc) => match build_scene(&desc, &BuildOverrides::default()) {
-            Err(e) => e.to_string(),
-            Ok(_) => panic!("{tag}: expected an error"),
-        },
-    }
-}
-
-fn first_prop<'a>(desc: &'a SceneDescription, kind: ObjectKind, name: &str) -> &'a Value {
-    desc.objects
-        .iter()
-        .filter(|o| o.kind == kind)
-        .flat_map(|o| o.props.iter())
-        .find(|p| p.name == name)
-        .map(|p| &p.value)
-        .unwrap_or_else(|| panic!("no property {name}"))
+    load_or_build_error(tag, load(tag, &format!("{SENSOR}{body}"), &[]))
 }
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
@@ -82,16 +47,10 @@ fn default_and_substitution_in_any_attribute() {
         <shape type="$kind"><float name="$prop" value="$r"/></shape>"#;
     let desc = load("subst", body, &[]).unwrap();
     assert!(desc.objects.iter().any(|o| o.plugin == "sphere"));
-    assert_eq!(
-        first_prop(&desc, ObjectKind::Shape, "radius"),
-        &Value::Float(2.5)
-    );
+    assert_eq!(prop(&desc, ObjectKind::Shape, "radius"), &Value::Float(2.5));
     // -D wins over <default>.
     let desc = load("subst_d", body, &[("r", "7")]).unwrap();
-    assert_eq!(
-        first_prop(&desc, ObjectKind::Shape, "radius"),
-        &Value::Float(7.0)
-    );
+    assert_eq!(prop(&desc, ObjectKind::Shape, "radius"), &Value::Float(7.0));
 }
 
 #[test]
@@ -126,7 +85,7 @@ fn include_is_relative_to_the_scene_folder_and_cycles_are_caught() {
     );
     let desc = load_file(&main, &LoadOptions::default()).unwrap();
     assert_eq!(
-        first_prop(&desc, ObjectKind::Emitter, "radiance"),
+        prop(&desc, ObjectKind::Emitter, "radiance"),
         &Value::Float(3.0)
     );
     assert_eq!(desc.files.len(), 2);
@@ -205,7 +164,7 @@ fn property_types() {
         &[],
     )
     .unwrap();
-    let v = |n| first_prop(&desc, ObjectKind::Shape, n).clone();
+    let v = |n| prop(&desc, ObjectKind::Shape, n).clone();
     assert_eq!(v("f"), Value::Float(-1.5e-3));
     assert_eq!(v("i"), Value::Integer(-7));
     assert_eq!(v("b"), Value::Boolean(true));

@@ -2,6 +2,8 @@
 //! chunks, and loading committed Mitsuba 3 references.
 #![allow(dead_code)]
 
+pub mod scene_text;
+
 use std::path::{Path, PathBuf};
 
 use mediareg::image::stats::{compare, Comparison, Estimate};
@@ -27,12 +29,17 @@ pub fn mesh_dirs() -> Vec<PathBuf> {
 }
 
 pub fn options(params: &[(&str, &str)]) -> LoadOptions {
+    options_in(params, mesh_dirs())
+}
+
+/// Load options with `params` (`-D name=value`) and a search path.
+pub fn options_in(params: &[(&str, &str)], search_dirs: Vec<PathBuf>) -> LoadOptions {
     LoadOptions {
         params: params
             .iter()
             .map(|(k, v)| (k.to_string(), v.to_string()))
             .collect(),
-        search_dirs: mesh_dirs(),
+        search_dirs,
     }
 }
 
