@@ -30,6 +30,23 @@ pub struct Hit {
     pub v: f32,
 }
 
+/// obvhs's CWBVH node test clamps a box's entry distance to an absolute 1e-4
+/// (`cwbvh::node::EPSILON`): a box the ray leaves within 1e-4 of its origin is culled.
+/// That loses hits near the origin: every boundary of a scene scaled down, and in a
+/// dense medium (σ_t 1e4: a mean free path is 1e-4) the mesh boundary next to a
+/// scattering vertex, so the path walks out of the medium unseen.
+const NODE_TMIN: f32 = 1e-4;
+
+/// The ray handed to the traversal: started `back` behind `o`, with `back` above the
+/// node test's clamp even after rounding `o − back·d` to f32, so every box the true
+/// ray meets at t ≥ 0 is visited. Primitives are still intersected with the true ray,
+/// and their distances reported to the traversal as `t + back`.
+#[inline]
+fn traversal_ray(o: Vec3A, d: Vec3A, tmax: f32) -> (BvhRay, f32) {
+    let back = 2.0 * NODE_TMIN + o.abs().max_element() * 1e-6;
+    (BvhRay::new(o - d * back, d, 0.0, tmax + back), back)
+}
+
 pub struct Accel {
     bvh: CwBvh,
     prims: Vec<PrimRef>,
@@ -119,12 +136,12 @@ impl Accel {
         if self.prims.is_empty() {
             return None;
         }
-        let ray = BvhRay::new(o, d, 0.0, tmax);
+        let (ray, back) = traversal_ray(o, d, tmax);
         let mut best: Option<Hit> = None;
         let mut rh = RayHit::none();
         self.bvh.ray_traverse(ray, &mut rh, |r, id| {
             let p = self.prims[self.bvh.primitive_indices[id] as usize];
-            match Self::prim_intersect(shapes, p, r.origin, r.direction, r.tmax) {
+            match Self::prim_intersect(shapes, p, o, d, r.tmax - back) {
                 Some((t, u, v)) => {
                     best = Some(Hit {
                         t,
@@ -133,7 +150,7 @@ impl Accel {
                         u,
                         v,
                     });
-                    t
+                    t + back
                 }
                 None => f32::INFINITY,
             }
@@ -147,11 +164,11 @@ impl Accel {
         if self.prims.is_empty() {
             return false;
         }
-        let ray = BvhRay::new(o, d, 0.0, tmax);
+        let (ray, back) = traversal_ray(o, d, tmax);
         !self.bvh.ray_traverse_miss(ray, |r, id| {
             let p = self.prims[self.bvh.primitive_indices[id] as usize];
-            Self::prim_intersect(shapes, p, r.origin, r.direction, r.tmax)
-                .map_or(f32::INFINITY, |h| h.0)
+            Self::prim_intersect(shapes, p, o, d, r.tmax - back)
+                .map_or(f32::INFINITY, |h| h.0 + back)
         })
     }
 }

@@ -31,9 +31,15 @@ impl Ray {
 }
 
 /// Offsets `p` off a surface with normal `n`, to the side `d` points to (Mitsuba's
-/// `Interaction::offset_p`): magnitude `(1 + max|p_i|) · RayEpsilon`.
-pub fn offset_point(p: Vec3A, n: Vec3A, d: Vec3A) -> Vec3A {
-    let mag = (1.0 + p.abs().max_element()) * RAY_EPSILON;
+/// `Interaction::offset_p`): magnitude `(scale + max|p_i|) · RayEpsilon`.
+///
+/// Mitsuba's floor is `scale` = 1, which assumes a scene about one unit in size: in a
+/// scene scaled down by 1e-3 it is 9% of an object's size, and in a dense medium the
+/// ray skips that much of it on entering. The scene passes its own size
+/// ([`crate::scene::Scene::offset_scale`]), so a scene scaled by s (and σ_t by 1/s)
+/// renders the same image; for a unit-sized scene it is Mitsuba's offset.
+pub fn offset_point(p: Vec3A, n: Vec3A, d: Vec3A, scale: f32) -> Vec3A {
+    let mag = (scale + p.abs().max_element()) * RAY_EPSILON;
     let mag = if n.dot(d) >= 0.0 { mag } else { -mag };
     p + n * mag
 }

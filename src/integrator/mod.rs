@@ -39,7 +39,7 @@ pub(crate) fn skip_emitters(
         if scene.shapes[si.shape as usize].emitter.is_none() {
             return Some(si);
         }
-        let o2 = offset_point(si.p, si.n, d);
+        let o2 = offset_point(si.p, si.n, d, scene.offset_scale);
         tmax -= (o2 - o).length();
         o = o2;
     }

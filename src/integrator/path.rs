@@ -102,7 +102,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
                 let (f, bsdf_pdf) = bsdf.eval_pdf(wi, wo);
                 if f != Vec3::ZERO {
                     // Shadow ray: spawn_ray_to(p), shortened by ShadowEpsilon.
-                    let so = offset_point(h.p, h.n, es.d);
+                    let so = offset_point(h.p, h.n, es.d, scene.offset_scale);
                     let v = es.p - so;
                     let dist = v.length();
                     if dist > 0.0 && !scene.occluded(so, v / dist, dist * (1.0 - SHADOW_EPSILON)) {
@@ -150,7 +150,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         if tmax_c == 0.0 {
             break;
         }
-        let o2 = offset_point(h.p, h.n, wo_world);
+        let o2 = offset_point(h.p, h.n, wo_world, scene.offset_scale);
         ray_d = wo_world;
         si = scene.intersect(o2, ray_d, f32::MAX);
     }

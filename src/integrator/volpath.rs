@@ -83,7 +83,7 @@ fn shadow_transmittance(
             return Vec3::ZERO;
         }
         medium = medium_after(info, h.n, d, medium);
-        let o2 = offset_point(h.p, h.n, d);
+        let o2 = offset_point(h.p, h.n, d, scene.offset_scale);
         dist -= (o2 - o).length();
         o = o2;
     }
@@ -308,7 +308,7 @@ pub fn sample(
                 let (f, bsdf_pdf) = bsdf.eval_pdf(wi, wo);
                 if f != Vec3::ZERO {
                     // Shadow ray: spawn_ray_to(p), shortened by ShadowEpsilon.
-                    let so = offset_point(h.p, h.n, es.d);
+                    let so = offset_point(h.p, h.n, es.d, scene.offset_scale);
                     let v = es.p - so;
                     let dist = v.length();
                     if dist > 0.0 {
@@ -354,7 +354,7 @@ pub fn sample(
             specular_chain = bs.delta;
         }
         medium = medium_after(info, h.n, wo, medium);
-        ray_o = offset_point(h.p, h.n, wo);
+        ray_o = offset_point(h.p, h.n, wo, scene.offset_scale);
         ray_d = wo;
         ray_tmax = f32::INFINITY;
     }

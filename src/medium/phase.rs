@@ -15,21 +15,43 @@ use glam::{Vec2, Vec3A};
 
 use crate::geometry::Frame;
 
-/// p_HG in double precision. 1 + g² − 2g cos = (1 − g)² + 2g (1 − cos)
-/// = (1 + g)² − 2g (1 + cos): the form whose terms are both ≥ 0 has no cancellation in
-/// the peak, which near |g| = 1 is only ~(1 − |g|)² wide in 1 ∓ cos θ.
+/// p_HG in double precision. 1 + g² − 2g cos = (1 − |g|)² + 2|g| w, with w = 1 ∓ cos θ
+/// the distance from the peak (cos θ = ±1 for g ≷ 0): both terms are ≥ 0, so there is no
+/// cancellation in the peak, which near |g| = 1 is only ~(1 − |g|)² wide in w.
 #[inline]
 fn hg(g: f64, cos_theta: f64) -> f64 {
-    let denom = if g >= 0.0 {
-        (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - cos_theta)
-    } else {
-        (1.0 + g) * (1.0 + g) - 2.0 * g * (1.0 + cos_theta)
-    };
+    hg_peak(
+        g,
+        if g >= 0.0 {
+            1.0 - cos_theta
+        } else {
+            1.0 + cos_theta
+        },
+    )
+}
+
+/// p_HG at distance `w` = 1 ∓ cos θ from the peak.
+#[inline]
+fn hg_peak(g: f64, w: f64) -> f64 {
+    let a = g.abs();
+    let denom = (1.0 - a) * (1.0 - a) + 2.0 * a * w;
     (1.0 - g * g) / (4.0 * std::f64::consts::PI * denom * denom.sqrt())
 }
 
-/// Below this |g|, HG is sampled as isotropic (the inversion formula divides by g).
-const G_ISOTROPIC: f32 = 1e-3;
+/// Inverse CDF of p_HG, as the distance from the peak
+/// w = 1 ∓ cos θ. The textbook cos θ = (1 + g² − s²)/(2g), s = (1 − g²)/(1 + g − 2gu),
+/// cancels near the peak: at g = 0.999 its f32 error (~1e-7) is a fifth of the peak's
+/// width. With a = |g| and s = (1 − a²)/(1 + a − 2au), the same value is
+///   w = (1 − a) u (s + 1 − a) / (1 + a − 2au),
+/// whose terms are all ≥ 0 (g < 0 is g > 0 mirrored: the peak at cos θ = −1), and which
+/// needs no isotropic special case: at g = 0 it is w = 2u.
+#[inline]
+fn hg_sample_peak_distance(g: f64, u: f64) -> f64 {
+    let a = g.abs();
+    let q = 1.0 + a - 2.0 * a * u;
+    let s = (1.0 - a * a) / q;
+    ((1.0 - a) * u * (s + 1.0 - a) / q).clamp(0.0, 2.0)
+}
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Phase {
@@ -53,19 +75,23 @@ impl Phase {
     /// Samples d_out for light travelling along `d_in`; returns (d_out, pdf).
     #[inline]
     pub fn sample(&self, d_in: Vec3A, u: Vec2) -> (Vec3A, f32) {
-        let cos_theta = match *self {
-            Phase::HenyeyGreenstein { g } if g.abs() >= G_ISOTROPIC => {
-                // Inverse CDF of p_HG in cos θ (pbrt-v4 SampleHenyeyGreenstein).
-                let s = (1.0 - g * g) / (1.0 + g - 2.0 * g * u.x);
-                ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
+        // w = 1 − cos θ measured from d_in (so the angle near θ = 0 keeps its precision
+        // in sin θ = sqrt(w (2 − w)), which cos θ in f32 would lose).
+        let (w, pdf) = match *self {
+            Phase::HenyeyGreenstein { g } => {
+                let (g, u) = (g as f64, u.x as f64);
+                let peak = hg_sample_peak_distance(g, u);
+                let w = if g >= 0.0 { peak } else { 2.0 - peak };
+                (w, hg_peak(g, peak) as f32)
             }
-            _ => 1.0 - 2.0 * u.x,
+            Phase::Isotropic => (2.0 * u.x as f64, 1.0 / (4.0 * PI)),
         };
-        let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+        let sin_theta = (w * (2.0 - w)).max(0.0).sqrt() as f32;
+        let cos_theta = (1.0 - w) as f32;
         let phi = 2.0 * PI * u.y;
         let local = Vec3A::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta);
         let d_out = Frame::new(d_in).to_world(local);
-        (d_out, self.eval(cos_theta))
+        (d_out, pdf)
     }
 }
 
@@ -120,6 +146,113 @@ mod tests {
             }
             mean /= (n * n) as f64;
             assert!((mean - g as f64).abs() < 2e-3, "g={g}: mean cos {mean}");
+        }
+    }
+
+    /// The distance from the peak of a sampled direction, measured without the f32
+    /// cancellation of 1 − d·d_in: 1 ∓ cos = sin² / (1 ± cos) on the peak's side.
+    fn measured_peak_distance(g: f32, d_in: Vec3A, d: Vec3A) -> f64 {
+        let (d_in, d) = (d_in.as_dvec3(), d.as_dvec3().normalize());
+        let c = d.dot(d_in);
+        let sin2 = d.cross(d_in).length_squared();
+        let toward = if g >= 0.0 { c } else { -c };
+        if toward > 0.0 {
+            sin2 / (1.0 + toward)
+        } else {
+            1.0 - toward
+        }
+    }
+
+    /// HG sampling is exact up to |g| = 0.999: the sampled directions' distances from
+    /// the peak follow the pdf (chi-square over a log grid reaching far inside the
+    /// peak, bin probabilities by numerical integration of p_HG), and the returned pdf
+    /// is p_HG of the direction returned. The textbook inversion in f32 fails this at
+    /// g = ±0.999 (its cos θ cancels in the peak).
+    #[test]
+    fn hg_sampling_exact_near_the_peak() {
+        use crate::integrator::sampler::Pcg32;
+        use statrs::distribution::{ChiSquared, ContinuousCDF};
+        let d_in = Vec3A::new(0.3, -0.4, 0.866).normalize();
+        let n = 400_000usize;
+        for (k, g) in [-0.999f32, -0.9, -0.5, 0.0, 0.0005, 0.5, 0.9, 0.999]
+            .into_iter()
+            .enumerate()
+        {
+            let p = Phase::HenyeyGreenstein { g };
+            // Bin edges in w: 0, then 10^-12 … 2 logarithmically.
+            let mut edges = vec![0.0f64];
+            edges.extend((0..=60).map(|i| 1e-12f64 * (2e12f64).powf(i as f64 / 60.0)));
+            // P(bin) = ∫ 2π p_HG dw over the bin: midpoint rule in ln w (and in w on the
+            // first bin), 2000 steps per bin.
+            let gd = g as f64;
+            let prob: Vec<f64> = edges
+                .windows(2)
+                .map(|e| {
+                    let m = 2000;
+                    if e[0] == 0.0 {
+                        let h = e[1] / m as f64;
+                        (0..m)
+                            .map(|i| hg_peak(gd, (i as f64 + 0.5) * h) * h)
+                            .sum::<f64>()
+                            * 2.0
+                            * std::f64::consts::PI
+                    } else {
+                        let (lo, hi) = (e[0].ln(), e[1].ln());
+                        let h = (hi - lo) / m as f64;
+                        (0..m)
+                            .map(|i| {
+                                let w = (lo + (i as f64 + 0.5) * h).exp();
+                                hg_peak(gd, w) * w * h
+                            })
+                            .sum::<f64>()
+                            * 2.0
+                            * std::f64::consts::PI
+                    }
+                })
+                .collect();
+            let total: f64 = prob.iter().sum();
+            assert!((total - 1.0).abs() < 1e-6, "g={g}: ∫p = {total}");
+
+            let mut counts = vec![0usize; prob.len()];
+            let mut rng = Pcg32::new(17, k as u64);
+            for _ in 0..n {
+                let (d, pdf) = p.sample(d_in, rng.next_2d());
+                let w = measured_peak_distance(g, d_in, d);
+                let b = edges.partition_point(|e| *e <= w).clamp(1, prob.len()) - 1;
+                counts[b] += 1;
+                // Away from the f32 resolution of a direction, the pdf returned is p_HG
+                // of the direction returned.
+                if w > 1e-5 {
+                    let want = hg_peak(gd, w);
+                    assert!(
+                        (pdf as f64 - want).abs() <= 1e-3 * want,
+                        "g={g}: pdf {pdf} vs p_HG {want} at w {w:e}"
+                    );
+                }
+            }
+            // Chi-square over bins merged until each expects ≥ 20 samples.
+            let (mut chi2, mut dof) = (0.0, 0usize);
+            let (mut e_acc, mut o_acc) = (0.0, 0usize);
+            for (pb, c) in prob.iter().zip(&counts) {
+                e_acc += pb * n as f64;
+                o_acc += c;
+                if e_acc >= 20.0 {
+                    chi2 += (o_acc as f64 - e_acc).powi(2) / e_acc;
+                    dof += 1;
+                    (e_acc, o_acc) = (0.0, 0);
+                }
+            }
+            if e_acc > 0.0 || o_acc > 0 {
+                chi2 += (o_acc as f64 - e_acc).powi(2) / e_acc.max(1.0);
+                dof += 1;
+            }
+            let limit = ChiSquared::new((dof - 1) as f64)
+                .unwrap()
+                .inverse_cdf(1.0 - 1e-6);
+            assert!(
+                chi2 < limit,
+                "g={g}: chi-square {chi2:.1} over {dof} bins (limit {limit:.1})"
+            );
         }
     }
 }

@@ -117,6 +117,16 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
             radius: r.max(RAY_EPSILON),
         }
     };
+    let offset_scale = if accel.bounds.is_empty() {
+        1.0
+    } else {
+        let half = (accel.bounds.max - accel.bounds.min).max_element() * 0.5;
+        if half.is_finite() && half > 0.0 {
+            half
+        } else {
+            1.0
+        }
+    };
     Ok(Scene {
         geometries: b.geometries,
         shapes: b.shapes,
@@ -126,6 +136,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         media: b.media,
         accel,
         bsphere,
+        offset_scale,
         camera,
         camera_medium,
         film,

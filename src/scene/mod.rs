@@ -53,6 +53,9 @@ pub struct Scene {
     pub media: Vec<HomogeneousMedium>,
     pub accel: Accel,
     pub bsphere: BSphere,
+    /// The scene's size: the largest half-extent of its bounding box (1 when empty).
+    /// Spawned rays are offset relative to it (see [`crate::geometry::offset_point`]).
+    pub offset_scale: f32,
     pub camera: PerspectiveCamera,
     /// The medium the sensor sits in (`<ref name="medium">` inside the sensor).
     pub camera_medium: Option<u32>,
