@@ -198,6 +198,15 @@ fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
             bail!("output folder {} does not exist", dir.display());
         }
     }
+    image::check_writable(&out_exr)?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    if let Some(w) =
+        mediareg::scene::cost::long_render_warning(&scene, rayon::current_num_threads())
+    {
+        eprintln!("warning: {w}");
+    }
     Ok((scene, out_exr))
 }
 

@@ -166,3 +166,118 @@ fn output_folder_missing() {
         "{stderr}"
     );
 }
+
+#[test]
+fn cyclic_include() {
+    // The cycle is found where it closes: in the included file, naming the includer.
+    let (code, stderr) = run_bad("cyclic_include_a.xml", &[]);
+    assert_ne!(code, 0);
+    for n in [
+        "cyclic_include_b.xml:2:",
+        "cyclic include",
+        "cyclic_include_a.xml",
+    ] {
+        assert!(stderr.contains(n), "no {n:?} in:\n{stderr}");
+    }
+}
+
+#[test]
+fn include_of_a_missing_file() {
+    expect_error(
+        "include_missing.xml",
+        6,
+        &["no_such_include.xml", "not found", "-a DIR"],
+    );
+}
+
+#[test]
+fn fov_zero_and_180() {
+    expect_error("fov_0.xml", 2, &["fov = 0", "(0, 180)"]);
+    expect_error("fov_180.xml", 2, &["fov = 180", "(0, 180)"]);
+}
+
+#[test]
+fn zero_and_negative_film_size() {
+    expect_error("zero_size_film.xml", 4, &["0 x 8", "[1, 32768]"]);
+    expect_error("negative_film.xml", 4, &["-64 x 8", "[1, 32768]"]);
+}
+
+#[test]
+fn a_billion_samples_per_pixel() {
+    expect_error("spp_1e9.xml", 4, &["sample_count = 1000000000", "16777216"]);
+}
+
+#[test]
+fn shape_nested_in_a_bsdf() {
+    expect_error("wrong_nesting.xml", 7, &["shape", "bsdf \"diffuse\""]);
+}
+
+#[test]
+fn ply_face_index_beyond_the_vertex_count() {
+    expect_error(
+        "mesh_wrong_count.xml",
+        6,
+        &["wrong_count.ply", "vertex 7", "4 vertices"],
+    );
+}
+
+#[test]
+fn ply_ascii_data_under_a_binary_header_and_the_reverse() {
+    for (xml, ply) in [
+        ("mesh_ascii_as_binary.xml", "ascii_as_binary.ply"),
+        ("mesh_binary_as_ascii.xml", "binary_as_ascii.ply"),
+    ] {
+        expect_error(xml, 6, &[ply, "cannot parse PLY", "ascii vs binary"]);
+    }
+}
+
+#[test]
+fn empty_obj() {
+    expect_error("mesh_empty.xml", 6, &["empty.obj", "no faces"]);
+}
+
+/// A PLY with more data than its header declares renders as Mitsuba does (the
+/// declared elements only), with a warning that names the file.
+#[test]
+fn ply_with_data_past_its_declared_counts_warns() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/bad_input");
+    let out = std::env::temp_dir().join(format!("mediareg_extra_face_{}.exr", std::process::id()));
+    let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .arg("render")
+        .arg(dir.join("mesh_extra_face.xml"))
+        .args(["--spp", "1", "--no-png", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning")
+            && stderr.contains("extra_face.ply")
+            && stderr.contains("1 faces"),
+        "{stderr}"
+    );
+    let _ = std::fs::remove_file(&out);
+}
+
+/// An output that cannot be written fails before rendering, not after.
+#[test]
+fn unwritable_output_fails_before_rendering() {
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("mitsuba_scenes/cbox.xml");
+    // /proc refuses new files even to root (permissions would not stop root).
+    let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .arg("render")
+        .arg(&scene)
+        .args(["--spp", "1", "-o", "/proc/mediareg_out.exr"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(!output.status.success());
+    assert!(
+        stderr.contains("cannot write the output /proc/mediareg_out.exr"),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("rendered"), "it rendered first:\n{stdout}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}

@@ -27,6 +27,8 @@ pub struct RawMesh {
     pub positions: Vec<Vec3A>,
     pub normals: Option<Vec<Vec3A>>,
     pub triangles: Vec<[u32; 3]>,
+    /// What the reader accepted but the user should hear about.
+    pub warnings: Vec<String>,
 }
 
 fn mesh_error(path: &Path, msg: impl Into<String>) -> SceneError {
@@ -51,11 +53,27 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
     use ply_rs::ply::{DefaultElement, Property};
     let file = std::fs::File::open(path)
         .map_err(|e| mesh_error(path, format!("cannot open PLY file: {e}")))?;
-    let ply = guarded(path, "PLY", || {
+    let (payload, trailing) = guarded(path, "PLY", || {
         let mut reader = BufReader::new(file);
-        Parser::<DefaultElement>::new()
-            .read_ply(&mut reader)
-            .map_err(|e| mesh_error(path, format!("cannot parse PLY file: {e}")))
+        // Header and payload from one reader (read_ply would buffer past the payload).
+        let parser = Parser::<DefaultElement>::new();
+        let payload = parser
+            .read_header(&mut reader)
+            .and_then(|header| parser.read_payload(&mut reader, &header))
+            .map_err(|e| {
+                mesh_error(
+                    path,
+                    format!(
+                        "cannot parse PLY file: {e} (the data ends before the element counts \
+                         its header declares, or is not in the header's format: ascii vs binary)"
+                    ),
+                )
+            })?;
+        // Data past the declared elements: Mitsuba ignores it, and so does this reader,
+        // but a header count that is too small is worth a word.
+        let mut rest = Vec::new();
+        let _ = std::io::Read::read_to_end(&mut std::io::Read::take(reader, 1 << 20), &mut rest);
+        Ok((payload, rest.iter().any(|b| !b.is_ascii_whitespace())))
     })?;
 
     let scalar = |p: &Property| -> Option<f64> {
@@ -83,8 +101,7 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
         })
     };
 
-    let vertices = ply
-        .payload
+    let vertices = payload
         .get("vertex")
         .ok_or_else(|| mesh_error(path, "PLY file has no \"vertex\" element"))?;
     let mut positions = Vec::with_capacity(vertices.len());
@@ -111,8 +128,7 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
             normals.push(Vec3A::new(nx as f32, ny as f32, nz as f32));
         }
     }
-    let faces = ply
-        .payload
+    let faces = payload
         .get("face")
         .ok_or_else(|| mesh_error(path, "PLY file has no \"face\" element"))?;
     let mut polys = Vec::with_capacity(faces.len());
@@ -125,10 +141,20 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
         polys.push(idx);
     }
     let triangles = triangulate(path, &polys, positions.len())?;
+    let mut warnings = Vec::new();
+    if trailing {
+        warnings.push(format!(
+            "{}: data after the {} vertices and {} faces the header declares is ignored (as Mitsuba does); is a count in the header too small?",
+            path.display(),
+            positions.len(),
+            polys.len()
+        ));
+    }
     Ok(RawMesh {
         positions,
         normals: has_normals.then_some(normals),
         triangles,
+        warnings,
     })
 }
 
@@ -176,6 +202,7 @@ pub fn read_obj(path: &Path) -> Result<RawMesh> {
         positions,
         normals: (all_have_normals && !normals.is_empty()).then_some(normals),
         triangles,
+        warnings: Vec::new(),
     })
 }
 
@@ -242,6 +269,7 @@ pub fn cube() -> RawMesh {
         positions,
         normals: Some(normals),
         triangles,
+        warnings: Vec::new(),
     }
 }
 

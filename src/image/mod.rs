@@ -23,6 +23,16 @@ fn commit(tmp: &Path, path: &Path) -> Result<()> {
         .with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))
 }
 
+/// Fails now, before a long render, if `path` cannot be written: creates and removes
+/// the temporary file that writing it will use.
+pub fn check_writable(path: &Path) -> Result<()> {
+    let tmp = temp_path(path);
+    std::fs::File::create(&tmp)
+        .with_context(|| format!("cannot write the output {}", path.display()))?;
+    let _ = std::fs::remove_file(&tmp);
+    Ok(())
+}
+
 /// Writes a linear RGB float32 EXR.
 pub fn write_exr(path: &Path, img: &Image) -> Result<()> {
     use exr::prelude::*;

@@ -43,6 +43,11 @@ use crate::scene::{Scene, ShapeInfo};
 /// Null-boundary crossings a shadow ray may make before it is treated as blocked
 /// (guards against a degenerate scene trapping the ray).
 const MAX_SHADOW_CROSSINGS: u32 = 256;
+/// Consecutive null-boundary crossings (no scattering between them: depth does not
+/// grow, and Russian roulette may not run) after which a path ends. Only a degenerate
+/// scene gets here (a ray caught between coincident surfaces); without the limit the
+/// render would hang.
+const MAX_NULL_CROSSINGS: u32 = 1 << 16;
 
 /// The medium on the side of the surface that direction `d` points into
 /// (Mitsuba's `target_medium`), or `current` when the surface is no medium boundary.
@@ -143,6 +148,7 @@ pub fn sample(
     let mut r_u = Vec3::ONE;
     let mut eta = 1.0f32;
     let mut depth: u32 = 0;
+    let mut null_crossings: u32 = 0;
     let mut medium = scene.camera_medium;
     let mut specular_chain = !s.hide_emitters;
     let mut last = LastScatter { p: o, pdf: 1.0 };
@@ -224,6 +230,7 @@ pub fn sample(
                 break;
             }
             if in_medium {
+                null_crossings = 0;
                 depth += 1;
                 if depth >= s.max_depth {
                     break;
@@ -345,7 +352,13 @@ pub fn sample(
         beta *= bs.weight;
         d_beta *= bs.weight;
         eta *= bs.eta;
-        if !bs.null {
+        if bs.null {
+            null_crossings += 1;
+            if null_crossings > MAX_NULL_CROSSINGS {
+                break;
+            }
+        } else {
+            null_crossings = 0;
             depth += 1;
             last = LastScatter {
                 p: h.p,

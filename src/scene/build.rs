@@ -42,6 +42,7 @@ struct Builder<'a> {
     shapes: Vec<ShapeInfo>,
     emitters: Vec<Emitter>,
     environment: Option<u32>,
+    warnings: Vec<String>,
 }
 
 /// Options from the command line that override the file.
@@ -62,6 +63,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         shapes: Vec::new(),
         emitters: Vec::new(),
         environment: None,
+        warnings: Vec::new(),
     };
     let root = Props::new(desc, desc.root);
 
@@ -137,6 +139,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         accel,
         bsphere,
         offset_scale,
+        warnings: b.warnings,
         camera,
         camera_medium,
         film,
@@ -415,6 +418,8 @@ impl Builder<'_> {
                 }
                 // Name the scene line of the <shape> too, not only the mesh file.
                 .map_err(|e| SceneError::at(p.loc(), format!("{}: {e}", p.obj.label())))?;
+                self.warnings
+                    .extend(raw.warnings.iter().map(|w| format!("{}: {w}", p.loc())));
                 Geometry::Mesh(TriangleMesh::new(
                     raw,
                     &to_mat4(to_world),

@@ -2,6 +2,7 @@
 
 pub mod build;
 pub mod camera;
+pub mod cost;
 pub mod film;
 pub mod props;
 
@@ -56,6 +57,8 @@ pub struct Scene {
     /// The scene's size: the largest half-extent of its bounding box (1 when empty).
     /// Spawned rays are offset relative to it (see [`crate::geometry::offset_point`]).
     pub offset_scale: f32,
+    /// What the loader accepted but the user should hear about (printed before rendering).
+    pub warnings: Vec<String>,
     pub camera: PerspectiveCamera,
     /// The medium the sensor sits in (`<ref name="medium">` inside the sensor).
     pub camera_medium: Option<u32>,
