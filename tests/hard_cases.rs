@@ -118,17 +118,21 @@ impl Cell {
 
     fn build(&self, seed: u64) -> Scene {
         let dir = tmp_dir("hard_cases", &format!("{:x}", seed_hash(&self.tag())));
-        let path = write(&dir, "scene.xml", &self.xml());
-        mediareg::load_scene(
-            &path,
-            &common::options_in(&[], vec![]),
-            &BuildOverrides {
-                spp: None,
-                seed: Some(seed),
-            },
-        )
-        .unwrap_or_else(|e| panic!("{}: {e}", self.tag()))
+        load_seeded(&write(&dir, "scene.xml", &self.xml()), seed)
     }
+}
+
+/// Loads a scene file written by a test, with `seed` (the file's spp).
+fn load_seeded(path: &std::path::Path, seed: u64) -> Scene {
+    mediareg::load_scene(
+        path,
+        &common::options_in(&[], vec![]),
+        &BuildOverrides {
+            spp: None,
+            seed: Some(seed),
+        },
+    )
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 fn seed_hash(s: &str) -> u64 {
@@ -449,16 +453,7 @@ fn dense_medium_mesh_boundary_matches_analytic_sphere() {
 </scene>"#
             );
             let name = format!("scene_{seed}.xml");
-            let path = write(&dir, &name, &xml);
-            mediareg::load_scene(
-                &path,
-                &common::options_in(&[], vec![]),
-                &BuildOverrides {
-                    spp: None,
-                    seed: Some(seed),
-                },
-            )
-            .unwrap_or_else(|e| panic!("{e}"))
+            load_seeded(&write(&dir, &name, &xml), seed)
         };
         let render = |scene: &Scene| {
             let r = render_with(scene, &RenderOptions::default());
