@@ -281,3 +281,19 @@ fn unwritable_output_fails_before_rendering() {
     assert!(!stdout.contains("rendered"), "it rendered first:\n{stdout}");
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+/// Found by tests/fuzz.rs: ply-rs panicked on a header count that overflows u64.
+#[test]
+fn ply_count_beyond_u64() {
+    expect_error(
+        "mesh_huge_count.xml",
+        6,
+        &["huge_count.ply", "header line 3", "below 2^32"],
+    );
+}
+
+/// Found by tests/fuzz.rs: a sphere of radius 1e19 made the BVH builder panic.
+#[test]
+fn shape_too_large_for_single_precision() {
+    expect_error("huge_sphere.xml", 6, &["1e19", "within ±1e12", "to_world"]);
+}

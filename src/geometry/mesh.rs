@@ -46,6 +46,49 @@ fn guarded<T>(path: &Path, what: &str, f: impl FnOnce() -> Result<T>) -> Result<
     }
 }
 
+/// Element counts (and the format's version numbers) in the header must be numbers
+/// below 2³²: ply-rs panics on one that overflows u64, and no mesh this renderer can
+/// hold has more.
+fn check_ply_counts(path: &Path) -> Result<()> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(path)
+        .map_err(|e| mesh_error(path, format!("cannot open PLY file: {e}")))?;
+    let mut line = Vec::new();
+    let mut reader = BufReader::new(file);
+    for number in 1..=10_000 {
+        line.clear();
+        match reader.read_until(b'\n', &mut line) {
+            Ok(0) | Err(_) => break,
+            Ok(_) => {}
+        }
+        let text = String::from_utf8_lossy(&line);
+        let words: Vec<&str> = text.split_whitespace().collect();
+        // ply-rs converts a run of digits as soon as its grammar matches it, before it
+        // knows whether the rest of the line parses.
+        let overflows = |w: &str| {
+            let digits: String = w.chars().take_while(|c| c.is_ascii_digit()).collect();
+            !digits.is_empty() && digits.parse::<u32>().is_err()
+        };
+        match words[..] {
+            ["end_header"] => break,
+            ["element", name, count, ..] if overflows(count) => {
+                return Err(mesh_error(
+                    path,
+                    format!("PLY header line {number}: element \"{name}\" has count \"{count}\"; expected a number below 2^32"),
+                ));
+            }
+            ["format", _, version, ..] if version.split('.').any(overflows) => {
+                return Err(mesh_error(
+                    path,
+                    format!("PLY header line {number}: format version \"{version}\" is not a version number such as 1.0"),
+                ));
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// Reads a PLY file (ASCII or binary): vertex x, y, z and optional nx, ny, nz; faces from
 /// `vertex_indices` (or `vertex_index`), polygons fan-triangulated.
 pub fn read_ply(path: &Path) -> Result<RawMesh> {
@@ -53,6 +96,7 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
     use ply_rs::ply::{DefaultElement, Property};
     let file = std::fs::File::open(path)
         .map_err(|e| mesh_error(path, format!("cannot open PLY file: {e}")))?;
+    check_ply_counts(path)?;
     let (payload, trailing) = guarded(path, "PLY", || {
         let mut reader = BufReader::new(file);
         // Header and payload from one reader (read_ply would buffer past the payload).

@@ -228,6 +228,21 @@ impl Sphere {
 }
 
 impl Geometry {
+    /// World-space bounding box.
+    pub fn bounds(&self) -> Bounds {
+        match self {
+            Geometry::Mesh(m) => {
+                let mut b = Bounds::EMPTY;
+                for p in &m.positions {
+                    b.expand(*p);
+                }
+                b
+            }
+            Geometry::Sphere(s) => s.bounds(),
+            Geometry::Planar(p) => p.bounds(),
+        }
+    }
+
     pub fn area(&self) -> f32 {
         match self {
             Geometry::Mesh(m) => m.total_area,

@@ -32,6 +32,9 @@ pub const UNIFORM_SPECTRUM_RGB: Vec3 = Vec3::new(
     0.055648 - 0.204043 + 1.057311,
 );
 
+/// The largest |coordinate| a shape may reach.
+const MAX_COORDINATE: f32 = 1e12;
+
 struct Builder<'a> {
     desc: &'a SceneDescription,
     bsdfs: Vec<Bsdf>,
@@ -467,6 +470,21 @@ impl Builder<'_> {
                 ))
             }
         };
+        // Single-precision ray tracing needs finite coordinates of sane magnitude (at 1e12
+        // one f32 step is 6e4 units; box areas overflow near 1e19 and break the BVH).
+        let b = geometry.bounds();
+        let mut reach = b.min.abs().max(b.max.abs()).max_element();
+        if let Geometry::Mesh(m) = &geometry {
+            // Bounds skip NaN; a NaN vertex (binary PLY) must not.
+            if m.positions.iter().any(|p| !p.is_finite()) {
+                reach = f32::NAN;
+            }
+        }
+        if !b.is_empty() && (reach.is_nan() || reach > MAX_COORDINATE) {
+            return Err(p.error(format!(
+                "the shape reaches {reach:e} from the origin: coordinates must be finite and within ±{MAX_COORDINATE:e}; check its to_world, radius or the mesh's units"
+            )));
+        }
         let shape_index = self.geometries.len() as u32;
         let emitter = match p.child_of(ObjectKind::Emitter)? {
             Some(c) => Some(self.emitter(c.object, Some(shape_index))?),
@@ -497,6 +515,13 @@ impl Builder<'_> {
             "sphere" => "center, radius, to_world, flip_normals, bsdf, emitter, interior, exterior",
             _ => "to_world, flip_normals, bsdf, emitter, interior, exterior",
         };
+        // An area light is sampled with pdf 1 / area.
+        if emitter.is_some() && !(geometry.area() > 0.0 && geometry.area().is_finite()) {
+            return Err(p.error(format!(
+                "the area light's shape has area {}: it must be finite and > 0; check its to_world scale",
+                geometry.area()
+            )));
+        }
         p.finish(names)?;
         self.geometries.push(geometry);
         self.shapes.push(ShapeInfo {
