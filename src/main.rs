@@ -3,6 +3,7 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -144,13 +145,40 @@ enum PredictArg {
     Loglinear,
 }
 
+/// Set by the first Ctrl-C during `render`: the render stops after dropping the pass
+/// under way, and the image of the passes completed is written.
+static INTERRUPT: AtomicBool = AtomicBool::new(false);
+
+/// The conventional exit status of a process ended by SIGINT (128 + 2).
+const EXIT_INTERRUPTED: u8 = 130;
+
+/// The first Ctrl-C asks the render to stop and write what it has; a second one quits
+/// at once (atomic writes leave no partial file either way).
+fn install_interrupt_handler() -> Result<()> {
+    ctrlc::set_handler(|| {
+        if INTERRUPT.swap(true, Ordering::SeqCst) {
+            eprintln!("\ninterrupted again: quitting without writing");
+            std::process::exit(EXIT_INTERRUPTED as i32);
+        }
+        eprintln!(
+            "\ninterrupted: writing the image rendered so far (Ctrl-C again to quit at once)"
+        );
+    })
+    .context("cannot install the Ctrl-C handler")
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(cli) {
+        Ok(()) if INTERRUPT.load(Ordering::SeqCst) => ExitCode::from(EXIT_INTERRUPTED),
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            if INTERRUPT.load(Ordering::SeqCst) {
+                ExitCode::from(EXIT_INTERRUPTED)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }
@@ -239,19 +267,34 @@ fn run(cli: Cli) -> Result<()> {
             };
 
             let show = std::io::stderr().is_terminal();
+            install_interrupt_handler()?;
             let rendered = integrator::render_with(
                 &scene_data,
                 &integrator::RenderOptions {
                     show_progress: show,
                     gradient,
+                    cancel: Some(&INTERRUPT),
                 },
             );
             let (img, stats) = (&rendered.image, &rendered.stats);
-            image::write_exr(&out_exr, img)?;
+            if stats.interrupted {
+                if stats.spp == 0 {
+                    bail!("interrupted before the first pass completed: nothing written");
+                }
+                eprintln!(
+                    "warning: interrupted at {} of {} spp; the EXR header's \"spp\" says so",
+                    stats.spp, scene_data.spp
+                );
+            }
+            // The spp reached (less than asked for when interrupted), in the EXR header.
+            // One attribute only: exr keeps them in a HashMap, whose order (and so the
+            // file's bytes) would change from run to run.
+            let attributes = [("spp", stats.spp as i32)];
+            image::write_exr_with(&out_exr, img, &attributes)?;
             let mut written = vec![out_exr.display().to_string()];
             if let Some(g) = &rendered.gradient {
                 let out_grad = sibling(&out_exr, "_dalbedo");
-                image::write_exr(&out_grad, g)?;
+                image::write_exr_with(&out_grad, g, &attributes)?;
                 written.push(out_grad.display().to_string());
             }
             if !args.no_png {

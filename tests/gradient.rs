@@ -53,6 +53,7 @@ fn render_scene(
         &RenderOptions {
             show_progress: false,
             gradient,
+            ..Default::default()
         },
     );
     (r.image.pixels, r.gradient.map(|g| g.pixels))
@@ -229,6 +230,7 @@ fn spatial_denoising_lowers_the_gradient_error() {
         &RenderOptions {
             show_progress: false,
             gradient: Gradient::Albedo(0),
+            ..Default::default()
         },
     );
     let grad = out.gradient.unwrap().pixels;

@@ -232,6 +232,7 @@ fn run_cell(c: &Cell, reference: Option<&[f64]>, failures: &mut Vec<String>) -> 
         &RenderOptions {
             show_progress: false,
             gradient,
+            ..Default::default()
         },
     );
     let secs = start.elapsed().as_secs_f64();

@@ -35,6 +35,13 @@ pub fn check_writable(path: &Path) -> Result<()> {
 
 /// Writes a linear RGB float32 EXR.
 pub fn write_exr(path: &Path, img: &Image) -> Result<()> {
+    write_exr_with(path, img, &[])
+}
+
+/// Writes a linear RGB float32 EXR with integer attributes in its header (e.g. the spp
+/// a render reached). With more than one, the file's bytes vary between runs (exr keeps
+/// them in a HashMap).
+pub fn write_exr_with(path: &Path, img: &Image, attributes: &[(&str, i32)]) -> Result<()> {
     use exr::prelude::*;
     if img.pixels.iter().any(|p| p.iter().any(|c| !c.is_finite())) {
         bail!(
@@ -44,15 +51,45 @@ pub fn write_exr(path: &Path, img: &Image) -> Result<()> {
     }
     let tmp = temp_path(path);
     let w = img.width;
-    let r = write_rgb_file(&tmp, img.width, img.height, |x, y| {
+    let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
         let p = img.pixels[y * w + x];
         (p[0], p[1], p[2])
     });
-    if let Err(e) = r {
+    // Chunks in increasing order: with the default (unspecified) order the file's bytes
+    // depend on which compression thread finished first.
+    let encoding = Encoding {
+        line_order: LineOrder::Increasing,
+        ..Encoding::FAST_LOSSLESS
+    };
+    let mut image =
+        exr::image::Image::from_encoded_channels((img.width, img.height), encoding, channels);
+    for (name, value) in attributes {
+        image
+            .attributes
+            .other
+            .insert(Text::from(*name), AttributeValue::I32(*value));
+    }
+    if let Err(e) = image.write().to_file(&tmp) {
         let _ = std::fs::remove_file(&tmp);
         bail!("cannot write {}: {e}", path.display());
     }
     commit(&tmp, path)
+}
+
+/// An integer attribute of an EXR's header, if present.
+pub fn read_exr_int_attribute(path: &Path, name: &str) -> Result<Option<i32>> {
+    use exr::meta::attribute::AttributeValue;
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .with_context(|| format!("cannot read EXR header {}", path.display()))?;
+    let key = exr::meta::attribute::Text::from(name);
+    Ok(meta.headers.iter().find_map(|h| {
+        [&h.shared_attributes.other, &h.own_attributes.other]
+            .into_iter()
+            .find_map(|m| match m.get(&key) {
+                Some(AttributeValue::I32(v)) => Some(*v),
+                _ => None,
+            })
+    }))
 }
 
 /// Reads the RGB channels of an EXR (any of half/float/uint channels R, G, B).

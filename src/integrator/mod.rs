@@ -1,10 +1,15 @@
-//! Rendering: the film is cut into 32×32 blocks rendered in parallel (rayon); each pixel
-//! has its own random stream, and blocks are merged in a fixed order, so a seed gives
-//! the bit-identical image at any thread count.
+//! Rendering: the film is cut into 32×32 blocks rendered in parallel (rayon), in passes
+//! of samples per pixel (1, 1, 2, 4, … up to an eighth of the total), so that a render
+//! can be cut short between passes with an image of uniform spp. Each sample has its
+//! own random stream (seed, pixel, sample index), and blocks are merged in a fixed order
+//! whose pass schedule depends on spp only, so a seed gives the bit-identical image at
+//! any thread count.
 
 pub mod path;
 pub mod sampler;
 pub mod volpath;
+
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::{Vec2, Vec3, Vec3A};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -60,6 +65,8 @@ pub struct RenderStats {
     pub seconds: f64,
     /// Samples whose value was NaN or infinite (dropped, never written).
     pub invalid_samples: u64,
+    /// Whether `RenderOptions::cancel` cut the render short (`spp` is what it reached).
+    pub interrupted: bool,
 }
 
 /// What to render besides the radiance, and how to report progress.
@@ -68,6 +75,25 @@ pub struct RenderOptions {
     pub show_progress: bool,
     /// A derivative image to estimate in the same paths (volpath only).
     pub gradient: volpath::Gradient,
+    /// Set (e.g. by a Ctrl-C handler) to stop: the pass under way is dropped and the
+    /// image of the passes completed is returned.
+    pub cancel: Option<&'static AtomicBool>,
+}
+
+/// Sample ranges of the passes: 1, 1, 2, 4, … doubling up to max(1, spp / 8).
+fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
+    let cap = (spp / 8).max(1);
+    let mut passes = Vec::new();
+    let (mut start, mut size) = (0u32, 1u32);
+    while start < spp {
+        let end = start.saturating_add(size).min(spp);
+        passes.push((start, end));
+        if start > 0 {
+            size = (size * 2).min(cap);
+        }
+        start = end;
+    }
+    passes
 }
 
 /// The radiance image and, when asked for, the derivative image (same layout, signed).
@@ -125,51 +151,84 @@ pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
         ProgressBar::hidden()
     };
 
+    let cancelled = || opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+    let new_blocks = || -> Vec<(ImageBlock, Option<ImageBlock>)> {
+        tiles
+            .iter()
+            .map(|&(tx, ty, tw, th)| {
+                let b = || ImageBlock::new((tx as i64, ty as i64), (tw, th), border);
+                (b(), with_gradient.then(b))
+            })
+            .collect()
+    };
+
     let start = std::time::Instant::now();
-    let results: Vec<(ImageBlock, Option<ImageBlock>, u64)> = tiles
-        .par_iter()
-        .map(|&(tx, ty, tw, th)| {
-            let mut block = ImageBlock::new((tx as i64, ty as i64), (tw, th), border);
-            let mut d_block =
-                with_gradient.then(|| ImageBlock::new((tx as i64, ty as i64), (tw, th), border));
-            let mut invalid = 0u64;
-            for y in ty..ty + th {
-                for x in tx..tx + tw {
-                    let (fx, fy) = (x + ox, y + oy);
-                    let mut rng = Pcg32::for_pixel(scene.seed, (fy * film.width + fx) as u64);
-                    for _ in 0..spp {
-                        let u = rng.next_2d();
-                        let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
-                        let ray = scene.camera.sample_ray(pos);
-                        let (mut l, mut dl) = sample(ray.o, ray.d, ray.tmax, &mut rng);
-                        if !l.is_finite() || !dl.is_finite() {
-                            invalid += 1;
-                            l = Vec3::ZERO;
-                            dl = Vec3::ZERO;
-                        }
-                        let p = (pos.x - ox as f32, pos.y - oy as f32);
-                        block.put(p, l, &film.rfilter);
-                        if let Some(db) = &mut d_block {
-                            db.put(p, dl, &film.rfilter);
+    let mut acc = new_blocks();
+    let mut invalid_samples = 0;
+    let mut spp_done = 0;
+    for (s0, s1) in pass_schedule(spp) {
+        // Each tile renders samples s0..s1 of its pixels; None if cancelled on the way.
+        let pass: Vec<Option<(ImageBlock, Option<ImageBlock>, u64)>> = tiles
+            .par_iter()
+            .map(|&(tx, ty, tw, th)| {
+                let mut block = ImageBlock::new((tx as i64, ty as i64), (tw, th), border);
+                let mut d_block = with_gradient
+                    .then(|| ImageBlock::new((tx as i64, ty as i64), (tw, th), border));
+                let mut invalid = 0u64;
+                for y in ty..ty + th {
+                    if cancelled() {
+                        return None;
+                    }
+                    for x in tx..tx + tw {
+                        let (fx, fy) = (x + ox, y + oy);
+                        let pixel = (fy * film.width + fx) as u64;
+                        for si in s0..s1 {
+                            let mut rng = Pcg32::for_sample(scene.seed, pixel, si as u64);
+                            let u = rng.next_2d();
+                            let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
+                            let ray = scene.camera.sample_ray(pos);
+                            let (mut l, mut dl) = sample(ray.o, ray.d, ray.tmax, &mut rng);
+                            if !l.is_finite() || !dl.is_finite() {
+                                invalid += 1;
+                                l = Vec3::ZERO;
+                                dl = Vec3::ZERO;
+                            }
+                            let p = (pos.x - ox as f32, pos.y - oy as f32);
+                            block.put(p, l, &film.rfilter);
+                            if let Some(db) = &mut d_block {
+                                db.put(p, dl, &film.rfilter);
+                            }
                         }
                     }
                 }
+                bar.inc((tw * th) as u64 * (s1 - s0) as u64);
+                Some((block, d_block, invalid))
+            })
+            .collect();
+        if pass.iter().any(Option::is_none) {
+            break;
+        }
+        for ((b, db), (pb, pdb, inv)) in acc.iter_mut().zip(pass.into_iter().flatten()) {
+            pb.accumulate_into(b);
+            if let (Some(pdb), Some(db)) = (pdb, db) {
+                pdb.accumulate_into(db);
             }
-            bar.inc((tw * th) as u64 * spp as u64);
-            (block, d_block, invalid)
-        })
-        .collect();
+            invalid_samples += inv;
+        }
+        spp_done = s1;
+        if cancelled() {
+            break;
+        }
+    }
     bar.finish_and_clear();
 
     let mut full = ImageBlock::new((0, 0), (cw, ch), border);
     let mut d_full = with_gradient.then(|| ImageBlock::new((0, 0), (cw, ch), border));
-    let mut invalid_samples = 0;
-    for (b, db, inv) in &results {
+    for (b, db) in &acc {
         b.accumulate_into(&mut full);
         if let (Some(db), Some(d_full)) = (db, &mut d_full) {
             db.accumulate_into(d_full);
         }
-        invalid_samples += inv;
     }
     let seconds = start.elapsed().as_secs_f64();
     let as_image = |b: &ImageBlock| Image {
@@ -181,10 +240,11 @@ pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
         image: as_image(&full),
         gradient: d_full.as_ref().map(as_image),
         stats: RenderStats {
-            spp,
-            samples: total,
+            spp: spp_done,
+            samples: (cw * ch) as u64 * spp_done as u64,
             seconds,
             invalid_samples,
+            interrupted: spp_done < spp,
         },
     }
 }

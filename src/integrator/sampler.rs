@@ -1,5 +1,6 @@
-//! Mitsuba's `independent` sampler: a PCG32 stream per pixel, seeded from the scene seed
-//! and the pixel index, so an image depends only on the seed, never on thread count.
+//! Mitsuba's `independent` sampler: a PCG32 stream per pixel sample, seeded from the
+//! scene seed, the pixel index and the sample index, so an image depends only on the
+//! seed, never on thread count or on how the samples are split into passes.
 
 use glam::Vec2;
 
@@ -29,6 +30,15 @@ impl Pcg32 {
     pub fn for_pixel(seed: u64, pixel: u64) -> Self {
         let s = splitmix64(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ splitmix64(pixel));
         Pcg32::new(s, splitmix64(s ^ pixel))
+    }
+
+    /// A stream for one sample of one pixel, so that a sample's value does not depend on
+    /// how the samples are split into passes.
+    #[inline]
+    pub fn for_sample(seed: u64, pixel: u64, sample: u64) -> Self {
+        let p = splitmix64(pixel ^ splitmix64(sample.wrapping_mul(0xd1b5_4a32_d192_ed03)));
+        let s = splitmix64(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ p);
+        Pcg32::new(s, splitmix64(s ^ p))
     }
 
     #[inline]

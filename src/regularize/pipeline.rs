@@ -205,6 +205,7 @@ pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, Scen
             &RenderOptions {
                 show_progress: false,
                 gradient: Gradient::Albedo(opts.medium),
+                ..Default::default()
             },
         );
         scene.spp = saved_spp;

@@ -88,6 +88,7 @@ pub fn render_gradient_chunks(
             let opts = mediareg::integrator::RenderOptions {
                 show_progress: false,
                 gradient,
+                ..Default::default()
             };
             mediareg::integrator::render_with(&s, &opts)
                 .gradient
