@@ -149,7 +149,8 @@ fn mean_se(v: &[f64]) -> (f64, f64) {
     (m, (var / n).sqrt())
 }
 
-/// z of a mean against `expected`; an exactly matching noiseless mean gives 0.
+/// z of a mean against `expected`; an exactly matching noiseless mean gives 0, and any
+/// other noiseless mean a huge z.
 fn z_of(m: f64, se: f64, expected: f64) -> f64 {
     let d = m - expected;
     if d == 0.0 {
@@ -283,7 +284,8 @@ fn run_cell(c: &Cell, reference: Option<&[f64]>, failures: &mut Vec<String>) -> 
         let n = v.len() as f64;
         let dm = v.iter().zip(&t).map(|(a, b)| a - b).sum::<f64>() / n;
         let var = t.iter().map(|p| p * (1.0 - p)).sum::<f64>() / SPP as f64 / (n * n);
-        let z = dm / (var.sqrt() + quad_err);
+        // (A black image of a black answer has no variance: z 0, not 0/0.)
+        let z = z_of(dm, var.sqrt() + quad_err, 0.0);
         note += &format!(", transmittance z {z:+.1}");
         if z.abs() > Z_MAX {
             fail(format!(
