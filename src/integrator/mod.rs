@@ -167,13 +167,13 @@ pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
     let mut invalid_samples = 0;
     let mut spp_done = 0;
     for (s0, s1) in pass_schedule(spp) {
-        // Each tile renders samples s0..s1 of its pixels; None if cancelled on the way.
-        let pass: Vec<Option<(ImageBlock, Option<ImageBlock>, u64)>> = tiles
+        // Each tile renders samples s0..s1 of its pixels into fresh blocks; None if
+        // cancelled on the way (the whole pass is then dropped).
+        let mut pass = new_blocks();
+        let invalid: Vec<Option<u64>> = tiles
             .par_iter()
-            .map(|&(tx, ty, tw, th)| {
-                let mut block = ImageBlock::new((tx as i64, ty as i64), (tw, th), border);
-                let mut d_block = with_gradient
-                    .then(|| ImageBlock::new((tx as i64, ty as i64), (tw, th), border));
+            .zip(pass.par_iter_mut())
+            .map(|(&(tx, ty, tw, th), (block, d_block))| {
                 let mut invalid = 0u64;
                 for y in ty..ty + th {
                     if cancelled() {
@@ -195,25 +195,25 @@ pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
                             }
                             let p = (pos.x - ox as f32, pos.y - oy as f32);
                             block.put(p, l, &film.rfilter);
-                            if let Some(db) = &mut d_block {
+                            if let Some(db) = d_block {
                                 db.put(p, dl, &film.rfilter);
                             }
                         }
                     }
                 }
                 bar.inc((tw * th) as u64 * (s1 - s0) as u64);
-                Some((block, d_block, invalid))
+                Some(invalid)
             })
             .collect();
-        if pass.iter().any(Option::is_none) {
+        let Some(invalid) = invalid.into_iter().sum::<Option<u64>>() else {
             break;
-        }
-        for ((b, db), (pb, pdb, inv)) in acc.iter_mut().zip(pass.into_iter().flatten()) {
+        };
+        invalid_samples += invalid;
+        for ((b, db), (pb, pdb)) in acc.iter_mut().zip(&pass) {
             pb.accumulate_into(b);
             if let (Some(pdb), Some(db)) = (pdb, db) {
                 pdb.accumulate_into(db);
             }
-            invalid_samples += inv;
         }
         spp_done = s1;
         if cancelled() {
