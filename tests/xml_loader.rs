@@ -100,6 +100,54 @@ fn include_is_relative_to_the_scene_folder_and_cycles_are_caught() {
     assert!(e.contains("cyclic include"), "{e}");
 }
 
+/// `<path value="DIR"/>` puts DIR in front of the search path (Mitsuba 3's resource
+/// path): relative to the file it is written in (here an included one), for meshes and
+/// later includes alike; a missing folder or a `<path>` below the root is an error.
+#[test]
+fn path_tag_adds_a_folder_to_the_search_path() {
+    let dir = tmp_dir("path_tag");
+    write(
+        &dir,
+        "assets/meshes/tri.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    );
+    write(
+        &dir,
+        "assets/base.xml",
+        r#"<scene version="3.0.0"><path value="meshes"/></scene>"#,
+    );
+    let main = write(
+        &dir,
+        "scenes/main.xml",
+        &format!(
+            r#"<scene version="3.0.0">{SENSOR}<path value="../assets"/><include filename="base.xml"/>
+<shape type="obj"><string name="filename" value="tri.obj"/></shape></scene>"#
+        ),
+    );
+    let desc = load_file(&main, &LoadOptions::default()).unwrap();
+    // The latest <path> first, then the one before, then the scene's folder.
+    let first: Vec<_> = desc.search_path[..2]
+        .iter()
+        .map(|d| d.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(first, ["meshes", "assets"], "{:?}", desc.search_path);
+    let scene = build_desc("path_tag", &desc);
+    assert_eq!(scene.geometries.len(), 1);
+
+    let e = load("path_missing", r#"<path value="no_such_folder"/>"#, &[]).unwrap_err();
+    assert!(
+        e.contains(":1:") && e.contains("<path>: folder \"no_such_folder\" not found"),
+        "{e}"
+    );
+    let e = load(
+        "path_nested",
+        r#"<shape type="sphere"><path value="."/></shape>"#,
+        &[],
+    )
+    .unwrap_err();
+    assert!(e.contains("<path> may only be a child of <scene>"), "{e}");
+}
+
 #[test]
 fn ids_and_refs_share_objects() {
     let s = build(

@@ -47,6 +47,11 @@ fn traversal_ray(o: Vec3A, d: Vec3A, tmax: f32) -> (BvhRay, f32) {
     (BvhRay::new(o - d * back, d, 0.0, tmax + back), back)
 }
 
+/// Up to this many primitives, testing each beats traversing the BVH: the furnace (one
+/// sphere) renders ~30% faster; the medium cube (14 primitives) ~10% slower, so the
+/// limit stays well below that.
+const BRUTE_FORCE_PRIMS: usize = 4;
+
 pub struct Accel {
     bvh: CwBvh,
     prims: Vec<PrimRef>,
@@ -136,6 +141,23 @@ impl Accel {
         if self.prims.is_empty() {
             return None;
         }
+        if self.prims.len() <= BRUTE_FORCE_PRIMS {
+            let mut best: Option<Hit> = None;
+            let mut t_best = tmax;
+            for p in &self.prims {
+                if let Some((t, u, v)) = Self::prim_intersect(shapes, *p, o, d, t_best) {
+                    t_best = t;
+                    best = Some(Hit {
+                        t,
+                        shape: p.shape,
+                        prim: p.index,
+                        u,
+                        v,
+                    });
+                }
+            }
+            return best;
+        }
         let (ray, back) = traversal_ray(o, d, tmax);
         let mut best: Option<Hit> = None;
         let mut rh = RayHit::none();
@@ -163,6 +185,12 @@ impl Accel {
     pub fn occluded(&self, shapes: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> bool {
         if self.prims.is_empty() {
             return false;
+        }
+        if self.prims.len() <= BRUTE_FORCE_PRIMS {
+            return self
+                .prims
+                .iter()
+                .any(|p| Self::prim_intersect(shapes, *p, o, d, tmax).is_some());
         }
         let (ray, back) = traversal_ray(o, d, tmax);
         !self.bvh.ray_traverse_miss(ray, |r, id| {

@@ -293,6 +293,7 @@ impl Loader {
                 Ok(())
             }
             "include" => self.include(el, obj),
+            "path" => self.resource_path(el, obj),
             "ref" => {
                 let attrs = self.attrs(el)?;
                 check_attrs(el, &attrs, &["id", "name"])?;
@@ -343,7 +344,7 @@ impl Loader {
                 None => Err(SceneError::at(&el.loc, format!("unknown tag <{tag}>")).with_hint(
                     "expected an object (shape, bsdf, emitter, medium, phase, sensor, film, sampler, \
                      rfilter, integrator), a property (float, integer, boolean, string, point, \
-                     vector, rgb, spectrum, transform), default, include or ref",
+                     vector, rgb, spectrum, transform), default, include, path or ref",
                 )),
             },
         }
@@ -374,6 +375,40 @@ impl Loader {
         let r = self.children(&root.children, obj, version);
         self.include_stack.pop();
         r
+    }
+
+    /// `<path value="DIR"/>` (Mitsuba 3's `Tag::Resource`): a folder put in front of the
+    /// search path, for the files named after it is read. A relative DIR is taken from
+    /// the folder of the file it is written in, else looked up on the search path.
+    fn resource_path(&mut self, el: &Element, obj: &Object) -> Result<()> {
+        let attrs = self.attrs(el)?;
+        check_attrs(el, &attrs, &["value"])?;
+        let value = required(el, &attrs, "value")?;
+        if obj.kind != ObjectKind::Scene {
+            return err_at(&el.loc, "<path> may only be a child of <scene>");
+        }
+        let dir = Path::new(&value);
+        let here = self
+            .include_stack
+            .last()
+            .and_then(|f| f.parent())
+            .map(|d| d.join(dir));
+        let found = if dir.is_absolute() {
+            dir.exists().then(|| dir.to_path_buf())
+        } else {
+            here.filter(|d| d.exists())
+                .or_else(|| resolve_path(&self.search_path, &value))
+        };
+        match found {
+            Some(d) if d.is_dir() => {
+                self.search_path.insert(0, d);
+                Ok(())
+            }
+            _ => Err(
+                SceneError::at(&el.loc, format!("<path>: folder \"{value}\" not found"))
+                    .with_hint(self.search_hint()),
+            ),
+        }
     }
 
     fn search_hint(&self) -> String {

@@ -1,0 +1,158 @@
+//! The public scene corpus (`../shared/corpus/`, see its INDEX.md; never copied here):
+//! every scene either renders or is refused with one clear message that names the file,
+//! the line and what is unsupported, never a panic and never an output file. The
+//! expected status of each scene is written below (and in README.md's corpus table), so
+//! a scene that starts to load, or fails for another reason, fails this test until its
+//! status (and, once it renders, its Mitsuba 3 reference comparison) is updated.
+
+mod common;
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use common::scene_text::tmp_dir;
+
+/// What the loader says of each corpus scene: the words its error must contain.
+const EXPECTED: &[(&str, &str)] = &[
+    (
+        "mdata_medium_sss",
+        "unsupported bsdf plugin \"roughdielectric\"",
+    ),
+    (
+        "mdata_medium_sss_textured",
+        "unsupported bsdf plugin \"roughdielectric\"",
+    ),
+    // The trimmed corpus copy lacks the folder; Mitsuba 3.9.1 refuses it the same way.
+    (
+        "mdata_homo_area_light",
+        "<path>: folder \"../../../common\" not found",
+    ),
+    (
+        "mdata_homo_dielectric_envmap",
+        "unsupported integrator plugin \"moment\"",
+    ),
+    ("mdata_homo_emitter_inside_medium", "sampled spectrum"),
+    (
+        "mdata_homo_null_envmap",
+        "unsupported integrator plugin \"moment\"",
+    ),
+    (
+        "mdata_homo_obj_inside_medium",
+        "unsupported integrator plugin \"moment\"",
+    ),
+    (
+        "mdata_homo_roughdielectric_spot",
+        "<path>: folder \"../../../common\" not found",
+    ),
+    (
+        "mdata_homo_spectral_sigmat",
+        "unsupported integrator plugin \"moment\"",
+    ),
+    (
+        "mdata_hetero_sigmat",
+        "unsupported integrator plugin \"moment\"",
+    ),
+    (
+        "mdata_hetero_sigmat_albedo",
+        "unsupported integrator plugin \"moment\"",
+    ),
+    (
+        "mdata_hetero_spectral_noscat",
+        "unsupported integrator plugin \"moment\"",
+    ),
+    (
+        "mdata_hetero_spectral_mis",
+        "unsupported integrator plugin \"moment\"",
+    ),
+    (
+        "mdata_surf_area_light_volpath",
+        "unsupported integrator plugin \"moment\"",
+    ),
+    ("mdata_cbox", "sampled spectrum"),
+    (
+        "mdata_matpreview",
+        "unsupported shape plugin \"serialized\"",
+    ),
+    ("mdata_hello", "unsupported integrator plugin \"direct\""),
+    (
+        "mdata_shape_ply_bunny",
+        "unsupported shape plugin \"serialized\"",
+    ),
+    ("mts06_test_bidir_2", "nested sensor \"irradiancemeter\""),
+    (
+        "mts06_test_bidir_0",
+        "unsupported integrator plugin \"ptracer\"",
+    ),
+    ("tut_simple", "unsupported integrator plugin \"direct\""),
+    ("tut_cbox", "unsupported bsdf plugin \"conductor\""),
+];
+
+/// "error: some/file.xml:LINE:…"
+fn names_file_and_line(line: &str) -> bool {
+    line.starts_with("error: ")
+        && line
+            .split_once(".xml:")
+            .is_some_and(|(_, rest)| rest.starts_with(|c: char| c.is_ascii_digit()))
+}
+
+fn corpus() -> Option<PathBuf> {
+    let dir = common::root().join("../shared/corpus");
+    dir.join("index.json").is_file().then_some(dir)
+}
+
+#[test]
+fn every_corpus_scene_renders_or_is_refused_clearly() {
+    let Some(dir) = corpus() else {
+        // CI always has ../shared beside the project; a bare checkout may not.
+        assert!(
+            std::env::var("CI").is_err(),
+            "../shared/corpus is missing on CI"
+        );
+        eprintln!("skipped: ../shared/corpus not found");
+        return;
+    };
+    let index: Vec<serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("index.json")).unwrap()).unwrap();
+    let out_dir = tmp_dir("corpus", "out");
+    let mut failures = Vec::new();
+    let mut seen = Vec::new();
+    for scene in &index {
+        let name = scene["name"].as_str().unwrap();
+        let entry = dir.join(name).join(scene["entry"].as_str().unwrap());
+        seen.push(name.to_string());
+        let Some(&(_, expected)) = EXPECTED.iter().find(|(n, _)| *n == name) else {
+            failures.push(format!("{name}: not in EXPECTED (a new corpus scene?)"));
+            continue;
+        };
+        let out = out_dir.join(format!("{name}.exr"));
+        let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+            .arg("render")
+            .arg(&entry)
+            .args(["--spp", "1", "--no-png", "-o"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        if stderr.contains("panicked") {
+            failures.push(format!("{name}: panicked:\n{stderr}"));
+        } else if output.status.success() {
+            failures.push(format!(
+                "{name}: now renders; compare it with a Mitsuba 3 reference and update EXPECTED"
+            ));
+        } else if !stderr.contains(expected) {
+            failures.push(format!(
+                "{name}: expected an error with {expected:?}, got:\n{stderr}"
+            ));
+        } else if !stderr.lines().next().is_some_and(names_file_and_line) {
+            failures.push(format!("{name}: the error names no file:line:\n{stderr}"));
+        } else if out.exists() {
+            failures.push(format!("{name}: refused, yet an output file was written"));
+        }
+    }
+    for (n, _) in EXPECTED {
+        if !seen.iter().any(|s| s == n) {
+            failures.push(format!("{n}: in EXPECTED but not in the corpus"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
