@@ -56,8 +56,13 @@ def resolve(name, search):
 
 def referenced_files(scene_path, search, params):
     """The scene file, its <include>s and every `filename` string property, resolved
-    like Mitsuba's file resolver (scene folder first, then each -a folder)."""
+    like Mitsuba's file resolver: the folders of <path value=...> tags first (the latest
+    first; relative to the file they are in), then the scene folder, then each -a
+    folder. Includes resolve as they are met; assets once every file is read, as Mitsuba
+    instantiates plugins after parsing."""
     out = {}
+    search = list(search)
+    assets = []
     stack = [scene_path]
     while stack:
         path = stack.pop()
@@ -68,17 +73,25 @@ def referenced_files(scene_path, search, params):
                 return re.sub(r"\$([A-Za-z0-9_]+)", lambda m: params.get(m.group(1), m.group(0)), v)
             if el.tag == "default":
                 params.setdefault(el.get("name"), el.get("value"))
+            if el.tag == "path":
+                value = subst(el.get("value"))
+                here = os.path.join(os.path.dirname(path), value)
+                d = here if os.path.isdir(here) else resolve(value, search)
+                if d is None:
+                    sys.exit(f"<path> {value} not found")
+                search.insert(0, d)
             if el.tag == "include":
                 p = resolve(subst(el.get("filename")), search)
                 if p is None:
                     sys.exit(f"include {el.get('filename')} not found")
                 stack.append(p)
             if el.tag == "string" and el.get("name") == "filename":
-                name = subst(el.get("value"))
-                p = resolve(name, search)
-                if p is None:
-                    sys.exit(f"asset {name} not found in {search}")
-                out[os.path.basename(name)] = p
+                assets.append(subst(el.get("value")))
+    for name in assets:
+        p = resolve(name, search)
+        if p is None:
+            sys.exit(f"asset {name} not found in {search}")
+        out[os.path.basename(name)] = p
     return out
 
 
@@ -118,6 +131,8 @@ def main():
     search = [scene_dir] + [os.path.abspath(a) for a in args.search]
     for d in args.search:
         mi.file_resolver().append(os.path.abspath(d))
+    # Before rendering: a missing asset should not cost a render.
+    files = referenced_files(os.path.abspath(args.scene), search, dict(params))
     if args.derivative is None:
         scenes = [(1.0, mi.load_file(args.scene, **params))]
     else:
@@ -156,7 +171,6 @@ def main():
     write("_half0", stack[:half].mean(axis=0))
     write("_half1", stack[half:].mean(axis=0))
 
-    files = referenced_files(os.path.abspath(args.scene), search, dict(params))
     meta = {
         "scene": os.path.relpath(os.path.abspath(args.scene)),
         "mitsuba_version": mi.__version__,

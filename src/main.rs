@@ -256,7 +256,7 @@ fn run(cli: Cli) -> Result<()> {
                 None => Gradient::None,
                 Some(GradientArg::Albedo) => {
                     if scene_data.integrator.kind != IntegratorKind::Volpath {
-                        bail!("--gradient albedo needs the volpath integrator (the scene uses path, which ignores media)");
+                        bail!("--gradient albedo needs the volpath integrator (the scene's integrator ignores media)");
                     }
                     Gradient::Albedo(
                         scene_data

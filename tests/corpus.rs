@@ -12,80 +12,145 @@ use std::process::Command;
 
 use common::scene_text::tmp_dir;
 
-/// What the loader says of each corpus scene: the words its error must contain.
-const EXPECTED: &[(&str, &str)] = &[
+/// What becomes of each corpus scene.
+enum Status {
+    /// Refused: the words its error must contain.
+    Refused(&'static str),
+    /// Renders, and matches the committed Mitsuba 3 reference `reference/NAME` (made
+    /// with these parameters): 8 independent renders of `spp` samples.
+    Matches {
+        reference: &'static str,
+        params: &'static [(&'static str, &'static str)],
+        spp: u32,
+    },
+}
+use Status::*;
+
+const EXPECTED: &[(&str, Status)] = &[
     (
         "mdata_medium_sss",
-        "unsupported bsdf plugin \"roughdielectric\"",
+        Refused("unsupported bsdf plugin \"roughdielectric\""),
     ),
     (
         "mdata_medium_sss_textured",
-        "unsupported bsdf plugin \"roughdielectric\"",
+        Refused("unsupported bsdf plugin \"roughdielectric\""),
     ),
     // The trimmed corpus copy lacks the folder; Mitsuba 3.9.1 refuses it the same way.
     (
         "mdata_homo_area_light",
-        "<path>: folder \"../../../common\" not found",
+        Refused("<path>: folder \"../../../common\" not found"),
     ),
     (
         "mdata_homo_dielectric_envmap",
-        "unsupported integrator plugin \"moment\"",
+        Refused("unsupported integrator plugin \"moment\""),
     ),
-    ("mdata_homo_emitter_inside_medium", "sampled spectrum"),
+    (
+        "mdata_homo_emitter_inside_medium",
+        Refused("sampled spectrum"),
+    ),
     (
         "mdata_homo_null_envmap",
-        "unsupported integrator plugin \"moment\"",
+        Refused("unsupported integrator plugin \"moment\""),
     ),
     (
         "mdata_homo_obj_inside_medium",
-        "unsupported integrator plugin \"moment\"",
+        Refused("unsupported integrator plugin \"moment\""),
     ),
     (
         "mdata_homo_roughdielectric_spot",
-        "<path>: folder \"../../../common\" not found",
+        Refused("<path>: folder \"../../../common\" not found"),
     ),
     (
         "mdata_homo_spectral_sigmat",
-        "unsupported integrator plugin \"moment\"",
+        Refused("unsupported integrator plugin \"moment\""),
     ),
     (
         "mdata_hetero_sigmat",
-        "unsupported integrator plugin \"moment\"",
+        Refused("unsupported integrator plugin \"moment\""),
     ),
     (
         "mdata_hetero_sigmat_albedo",
-        "unsupported integrator plugin \"moment\"",
+        Refused("unsupported integrator plugin \"moment\""),
     ),
     (
         "mdata_hetero_spectral_noscat",
-        "unsupported integrator plugin \"moment\"",
+        Refused("unsupported integrator plugin \"moment\""),
     ),
     (
         "mdata_hetero_spectral_mis",
-        "unsupported integrator plugin \"moment\"",
+        Refused("unsupported integrator plugin \"moment\""),
     ),
     (
         "mdata_surf_area_light_volpath",
-        "unsupported integrator plugin \"moment\"",
+        Refused("unsupported integrator plugin \"moment\""),
     ),
-    ("mdata_cbox", "sampled spectrum"),
+    ("mdata_cbox", Refused("sampled spectrum")),
     (
         "mdata_matpreview",
-        "unsupported shape plugin \"serialized\"",
+        Refused("unsupported shape plugin \"serialized\""),
     ),
-    ("mdata_hello", "unsupported integrator plugin \"direct\""),
+    (
+        "mdata_hello",
+        Matches {
+            reference: "corpus_mdata_hello",
+            params: &[],
+            spp: 2,
+        },
+    ),
     (
         "mdata_shape_ply_bunny",
-        "unsupported shape plugin \"serialized\"",
+        Refused("unsupported shape plugin \"serialized\""),
     ),
-    ("mts06_test_bidir_2", "nested sensor \"irradiancemeter\""),
+    (
+        "mts06_test_bidir_2",
+        Refused("nested sensor \"irradiancemeter\""),
+    ),
     (
         "mts06_test_bidir_0",
-        "unsupported integrator plugin \"ptracer\"",
+        Refused("unsupported integrator plugin \"ptracer\""),
     ),
-    ("tut_simple", "unsupported integrator plugin \"direct\""),
-    ("tut_cbox", "unsupported bsdf plugin \"conductor\""),
+    (
+        "tut_simple",
+        Matches {
+            reference: "corpus_tut_simple",
+            params: &[("res", "64")],
+            spp: 32,
+        },
+    ),
+    ("tut_cbox", Refused("unsupported bsdf plugin \"conductor\"")),
 ];
+
+/// Runs the CLI on a scene that must be refused; what is wrong with the outcome, if
+/// anything.
+fn refusal_failure(
+    entry: &std::path::Path,
+    out: &std::path::Path,
+    expected: &str,
+) -> Option<String> {
+    let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .arg("render")
+        .arg(entry)
+        .args(["--spp", "1", "--no-png", "-o"])
+        .arg(out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if stderr.contains("panicked") {
+        Some(format!("panicked:\n{stderr}"))
+    } else if output.status.success() {
+        Some("now renders; compare it with a Mitsuba 3 reference and update EXPECTED".into())
+    } else if !stderr.contains(expected) {
+        Some(format!(
+            "expected an error with {expected:?}, got:\n{stderr}"
+        ))
+    } else if !stderr.lines().next().is_some_and(names_file_and_line) {
+        Some(format!("the error names no file:line:\n{stderr}"))
+    } else if out.exists() {
+        Some("refused, yet an output file was written".into())
+    } else {
+        None
+    }
+}
 
 /// "error: some/file.xml:LINE:…"
 fn names_file_and_line(line: &str) -> bool {
@@ -120,33 +185,30 @@ fn every_corpus_scene_renders_or_is_refused_clearly() {
         let name = scene["name"].as_str().unwrap();
         let entry = dir.join(name).join(scene["entry"].as_str().unwrap());
         seen.push(name.to_string());
-        let Some(&(_, expected)) = EXPECTED.iter().find(|(n, _)| *n == name) else {
+        let Some((_, status)) = EXPECTED.iter().find(|(n, _)| *n == name) else {
             failures.push(format!("{name}: not in EXPECTED (a new corpus scene?)"));
             continue;
         };
-        let out = out_dir.join(format!("{name}.exr"));
-        let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
-            .arg("render")
-            .arg(&entry)
-            .args(["--spp", "1", "--no-png", "-o"])
-            .arg(&out)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        if stderr.contains("panicked") {
-            failures.push(format!("{name}: panicked:\n{stderr}"));
-        } else if output.status.success() {
-            failures.push(format!(
-                "{name}: now renders; compare it with a Mitsuba 3 reference and update EXPECTED"
-            ));
-        } else if !stderr.contains(expected) {
-            failures.push(format!(
-                "{name}: expected an error with {expected:?}, got:\n{stderr}"
-            ));
-        } else if !stderr.lines().next().is_some_and(names_file_and_line) {
-            failures.push(format!("{name}: the error names no file:line:\n{stderr}"));
-        } else if out.exists() {
-            failures.push(format!("{name}: refused, yet an output file was written"));
+        match status {
+            Refused(expected) => {
+                if let Some(f) =
+                    refusal_failure(&entry, &out_dir.join(format!("{name}.exr")), expected)
+                {
+                    failures.push(format!("{name}: {f}"));
+                }
+            }
+            Matches {
+                reference,
+                params,
+                spp,
+            } => {
+                // 8 independent renders against the reference, as the equivalence tests.
+                let c =
+                    common::check_file_against_reference(reference, &entry, params, 8, *spp, 21);
+                if !c.passed {
+                    failures.push(format!("{name}: differs from reference/{reference}: {c}"));
+                }
+            }
         }
     }
     for (n, _) in EXPECTED {

@@ -14,6 +14,9 @@ use mediareg::image::stats::Comparison;
 
 const CHUNKS: usize = 8;
 const SPP: u32 = 64;
+/// `direct` is cheap per sample and its point and area lights are noisy: more samples
+/// give its power test the resolution of the others.
+const SPP_DIRECT: u32 = 256;
 
 fn check(name: &str, params: &[(&str, &str)], seed: u64) -> Comparison {
     check_scene(name, name, params, seed)
@@ -69,6 +72,29 @@ fn comparison_detects_mesh_reflectance_off_by_two_percent() {
         "bunny_ply",
         &[("bunny_reflectance", "0.714, 0.612, 0.51")],
         6,
+    );
+    assert!(!c.passed, "a 2% reflectance change went undetected: {c}");
+}
+
+/// Mitsuba's `direct` integrator, 2 emitter samples and 1 BSDF sample: a point light
+/// (which Mitsuba 3 counts once per emitter sample), a spherical area light seen by the
+/// camera, and an environment.
+#[test]
+fn direct_matches_mitsuba() {
+    let c = check_against_reference("direct", "direct", &[], CHUNKS, SPP_DIRECT, 8);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: the cube's reflectance 2% off must fail the `direct` comparison.
+#[test]
+fn direct_comparison_detects_reflectance_off_by_two_percent() {
+    let c = check_against_reference(
+        "direct",
+        "direct",
+        &[("reflectance", "0.714, 0.612, 0.51")],
+        CHUNKS,
+        SPP_DIRECT,
+        9,
     );
     assert!(!c.passed, "a 2% reflectance change went undetected: {c}");
 }

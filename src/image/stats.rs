@@ -130,8 +130,12 @@ pub const BLOCK: usize = 8;
 /// z of a difference `d` with variance `v`; a value with zero variance on both sides is
 /// deterministic (e.g. a constant environment seen directly): equal up to float32
 /// rounding of the same arithmetic done in another order (1e-5 relative, ~100 ulp).
+/// A standard deviation below 1e-6 of the value is float32 rounding between chunks
+/// (chunk means of a constant that differ in the last bit), not noise: also
+/// deterministic. Monte Carlo noise of a chunk mean is orders of magnitude above it.
 fn z_of(d: f64, v: f64, a: f64, b: f64) -> f64 {
-    if v > 0.0 {
+    let rounding = 1e-6 * a.abs().max(b.abs());
+    if v > rounding * rounding {
         d / v.sqrt()
     } else if d.abs() <= 1e-5 * a.abs().max(b.abs()).max(1e-6) {
         0.0

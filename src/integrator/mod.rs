@@ -5,6 +5,7 @@
 //! whose pass schedule depends on spp only, so a seed gives the bit-identical image at
 //! any thread count.
 
+pub mod direct;
 pub mod path;
 pub mod sampler;
 pub mod volpath;
@@ -15,7 +16,7 @@ use glam::{Vec2, Vec3, Vec3A};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use crate::geometry::offset_point;
+use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::scene::film::ImageBlock;
 use crate::scene::{IntegratorKind, Scene, SurfaceInteraction};
 use sampler::Pcg32;
@@ -29,6 +30,60 @@ pub(crate) fn select_emitter(n: usize, u: Vec2) -> (usize, Vec2) {
     let x = u.x * n as f32;
     let idx = (x as usize).min(n - 1);
     (idx, Vec2::new(x - idx as f32, u.y))
+}
+
+/// Emitter sampling at a surface point, before MIS: the emitter-sampled direction's
+/// BSDF-weighted radiance and both pdfs.
+pub(crate) struct SurfaceLightSample {
+    /// `f · Le · G / p` with the emitter selection included: the estimate with weight 1.
+    pub value: Vec3,
+    /// Solid-angle pdf of the direction under emitter sampling (selection included).
+    pub emitter_pdf: f32,
+    /// Pdf of the same direction under BSDF sampling.
+    pub bsdf_pdf: f32,
+    pub delta: bool,
+}
+
+/// Picks an emitter uniformly with `u` (Mitsuba's `sample_emitter_direction`), samples
+/// a direction to it from the surface point `h`, and traces the shadow ray: `visibility`
+/// (from the offset origin, unit direction, distance already shortened by
+/// ShadowEpsilon) returns 1 (path, direct), or the transmittance of the media crossed
+/// (volpath). None when nothing arrives (no emitter, back-facing, zero BSDF, blocked).
+pub(crate) fn sample_light_at_surface(
+    scene: &Scene,
+    h: &SurfaceInteraction,
+    wi: Vec3A,
+    bsdf: &crate::bsdf::Bsdf,
+    u: Vec2,
+    visibility: impl FnOnce(Vec3A, Vec3A, f32) -> Vec3,
+) -> Option<SurfaceLightSample> {
+    let n = scene.emitters.len();
+    if n == 0 {
+        return None;
+    }
+    let (idx, u) = select_emitter(n, u);
+    let es = scene.emitters[idx].sample_direction(h.p, u, &scene.geometries, &scene.bsphere)?;
+    let (f, bsdf_pdf) = bsdf.eval_pdf(wi, h.sh_frame.to_local(es.d));
+    if f == Vec3::ZERO {
+        return None;
+    }
+    // Shadow ray: spawn_ray_to(p), shortened by ShadowEpsilon.
+    let so = offset_point(h.p, h.n, es.d, scene.offset_scale);
+    let v = es.p - so;
+    let dist = v.length();
+    if dist <= 0.0 {
+        return None;
+    }
+    let tr = visibility(so, v / dist, dist * (1.0 - SHADOW_EPSILON));
+    if tr == Vec3::ZERO {
+        return None;
+    }
+    Some(SurfaceLightSample {
+        value: f * es.weight * tr * n as f32,
+        emitter_pdf: es.pdf / n as f32,
+        bsdf_pdf,
+        delta: es.delta,
+    })
 }
 
 /// The first hit along (o, d) that is not an emitter shape (`hide_emitters` on the
@@ -128,6 +183,13 @@ pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
     let spp = scene.spp;
     let sample = |o, d, tmax, rng: &mut Pcg32| match scene.integrator.kind {
         IntegratorKind::Path => (path::sample(scene, o, d, tmax, rng), Vec3::ZERO),
+        IntegratorKind::Direct {
+            emitter_samples,
+            bsdf_samples,
+        } => (
+            direct::sample(scene, o, d, tmax, rng, emitter_samples, bsdf_samples),
+            Vec3::ZERO,
+        ),
         IntegratorKind::Volpath => volpath::sample(scene, o, d, tmax, rng, gradient),
     };
 

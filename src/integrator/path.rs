@@ -9,8 +9,8 @@
 use glam::{Vec3, Vec3A};
 
 use super::sampler::Pcg32;
-use super::{select_emitter, skip_emitters};
-use crate::geometry::{offset_point, SHADOW_EPSILON};
+use super::{sample_light_at_surface, skip_emitters};
+use crate::geometry::offset_point;
 use crate::scene::Scene;
 
 /// Power heuristic with β = 2: `a² / (a² + b²)`, 0 when not finite.
@@ -95,26 +95,14 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
 
         // ---- Emitter sampling ----
         if bsdf.is_smooth() && !scene.emitters.is_empty() {
-            let (idx, u) = select_emitter(scene.emitters.len(), rng.next_2d());
-            let e = &scene.emitters[idx];
-            if let Some(es) = e.sample_direction(h.p, u, &scene.geometries, &scene.bsphere) {
-                let wo = h.sh_frame.to_local(es.d);
-                let (f, bsdf_pdf) = bsdf.eval_pdf(wi, wo);
-                if f != Vec3::ZERO {
-                    // Shadow ray: spawn_ray_to(p), shortened by ShadowEpsilon.
-                    let so = offset_point(h.p, h.n, es.d, scene.offset_scale);
-                    let v = es.p - so;
-                    let dist = v.length();
-                    if dist > 0.0 && !scene.occluded(so, v / dist, dist * (1.0 - SHADOW_EPSILON)) {
-                        let pdf = es.pdf / n_emitters;
-                        let w = if es.delta {
-                            1.0
-                        } else {
-                            mis_weight(pdf, bsdf_pdf)
-                        };
-                        result += throughput * f * es.weight * n_emitters * w;
-                    }
-                }
+            let visible = |o, d, dist| Vec3::splat(!scene.occluded(o, d, dist) as u8 as f32);
+            if let Some(ls) = sample_light_at_surface(scene, &h, wi, bsdf, rng.next_2d(), visible) {
+                let w = if ls.delta {
+                    1.0
+                } else {
+                    mis_weight(ls.emitter_pdf, ls.bsdf_pdf)
+                };
+                result += throughput * ls.value * w;
             }
         }
 

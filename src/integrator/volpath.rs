@@ -35,7 +35,7 @@ use glam::{Vec3, Vec3A};
 
 use super::path::mis_weight;
 use super::sampler::Pcg32;
-use super::{select_emitter, skip_emitters};
+use super::{sample_light_at_surface, select_emitter, skip_emitters};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::medium::{transmittance, HomogeneousMedium};
 use crate::scene::{Scene, ShapeInfo};
@@ -308,37 +308,19 @@ pub fn sample(
 
         // ---- Emitter sampling from the surface ----
         if bsdf.is_smooth() && n_emitters > 0 && depth + 1 < s.max_depth {
-            let (idx, u) = select_emitter(n_emitters, rng.next_2d());
-            let e = &scene.emitters[idx];
-            if let Some(es) = e.sample_direction(h.p, u, &scene.geometries, &scene.bsphere) {
-                let wo = h.sh_frame.to_local(es.d);
-                let (f, bsdf_pdf) = bsdf.eval_pdf(wi, wo);
-                if f != Vec3::ZERO {
-                    // Shadow ray: spawn_ray_to(p), shortened by ShadowEpsilon.
-                    let so = offset_point(h.p, h.n, es.d, scene.offset_scale);
-                    let v = es.p - so;
-                    let dist = v.length();
-                    if dist > 0.0 {
-                        let shadow_medium = medium_after(info, h.n, es.d, medium);
-                        let tr = shadow_transmittance(
-                            scene,
-                            so,
-                            v / dist,
-                            dist * (1.0 - SHADOW_EPSILON),
-                            shadow_medium,
-                        );
-                        if tr != Vec3::ZERO {
-                            let w = if es.delta {
-                                1.0
-                            } else {
-                                mis_weight(es.pdf / n_emitters as f32, bsdf_pdf)
-                            };
-                            let x = f * es.weight * tr * n_emitters as f32 * w;
-                            result += beta * x;
-                            d_result += d_beta * x;
-                        }
-                    }
-                }
+            let transmittance = |o, d, dist| {
+                shadow_transmittance(scene, o, d, dist, medium_after(info, h.n, d, medium))
+            };
+            if let Some(ls) =
+                sample_light_at_surface(scene, &h, wi, bsdf, rng.next_2d(), transmittance)
+            {
+                let w = if ls.delta {
+                    1.0
+                } else {
+                    mis_weight(ls.emitter_pdf, ls.bsdf_pdf)
+                };
+                result += beta * ls.value * w;
+                d_result += d_beta * ls.value * w;
             }
         }
 

@@ -124,8 +124,7 @@ fn bad(msg: String) -> SceneError {
 pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, SceneError> {
     if scene.integrator.kind != IntegratorKind::Volpath {
         return Err(bad(
-            "regularize needs the volpath integrator (the scene uses path, which ignores media)"
-                .into(),
+            "regularize needs the volpath integrator (the scene's integrator ignores media)".into(),
         ));
     }
     let m = opts.medium as usize;

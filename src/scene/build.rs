@@ -180,13 +180,53 @@ fn emissive(p: &Props, name: &str) -> Result<Vec3> {
     })
 }
 
+/// Mitsuba's `direct`: `shading_samples` (1) sets both counts unless `emitter_samples`
+/// or `bsdf_samples` is given (giving both kinds is an error, as in Mitsuba).
+fn direct_integrator(p: Props) -> Result<IntegratorSettings> {
+    let count = |name: &str, default: i64| -> Result<u32> {
+        let v = p.int(name, default)?;
+        if !(0..=1 << 20).contains(&v) {
+            return Err(p.error(format!("{name} = {v}: must be in [0, 2^20]")));
+        }
+        Ok(v as u32)
+    };
+    let has = |name: &str| p.obj.props.iter().any(|q| q.name == name);
+    if has("shading_samples") && (has("emitter_samples") || has("bsdf_samples")) {
+        return Err(p.error(
+            "give either shading_samples or emitter_samples/bsdf_samples, not both (as Mitsuba requires)",
+        ));
+    }
+    let shading = count("shading_samples", 1)?;
+    let emitter_samples = count("emitter_samples", shading as i64)?;
+    let bsdf_samples = count("bsdf_samples", shading as i64)?;
+    if emitter_samples + bsdf_samples == 0 {
+        return Err(p.error("emitter_samples + bsdf_samples must be at least 1"));
+    }
+    if p.bool("hide_emitters", false)? {
+        return Err(p.error(
+            "hide_emitters = true is not supported with the direct integrator yet; use path with max_depth 2",
+        ));
+    }
+    p.finish("shading_samples, emitter_samples, bsdf_samples, hide_emitters")?;
+    Ok(IntegratorSettings {
+        kind: IntegratorKind::Direct {
+            emitter_samples,
+            bsdf_samples,
+        },
+        max_depth: 2,
+        rr_depth: u32::MAX,
+        hide_emitters: false,
+    })
+}
+
 impl Builder<'_> {
     fn integrator(&self, id: ObjId) -> Result<IntegratorSettings> {
         let p = Props::new(self.desc, id);
         let kind = match p.obj.plugin.as_str() {
             "path" => IntegratorKind::Path,
             "volpath" => IntegratorKind::Volpath,
-            _ => return Err(unsupported(&p, "integrator", "path, volpath")),
+            "direct" => return direct_integrator(p),
+            _ => return Err(unsupported(&p, "integrator", "path, volpath, direct")),
         };
         let max_depth = p.int("max_depth", -1)?;
         if max_depth < -1 {

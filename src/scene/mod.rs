@@ -24,6 +24,11 @@ pub use build::build_scene;
 pub enum IntegratorKind {
     Path,
     Volpath,
+    /// Mitsuba's `direct`: samples per camera ray of each strategy.
+    Direct {
+        emitter_samples: u32,
+        bsdf_samples: u32,
+    },
 }
 
 #[derive(Clone, Debug)]

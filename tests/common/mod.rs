@@ -208,9 +208,21 @@ pub fn check_against_reference(
     seed: u64,
 ) -> Comparison {
     let scene = root().join("mitsuba_scenes").join(format!("{scene}.xml"));
-    let r = reference(name, &scene);
-    let ours = Estimate::from_chunks(&render_chunks(&scene, params, chunks, spp, seed));
-    let width = independent_width(&scene, params);
+    check_file_against_reference(name, &scene, params, chunks, spp, seed)
+}
+
+/// `check_against_reference` for a scene file anywhere (e.g. in ../shared/corpus).
+pub fn check_file_against_reference(
+    name: &str,
+    scene: &Path,
+    params: &[(&str, &str)],
+    chunks: usize,
+    spp: u32,
+    seed: u64,
+) -> Comparison {
+    let r = reference(name, scene);
+    let ours = Estimate::from_chunks(&render_chunks(scene, params, chunks, spp, seed));
+    let width = independent_width(scene, params);
     let c = compare(&ours, &r.estimate, width, ALPHA, FALSE_ALARM);
     println!("{name} {params:?}: {c}");
     c
