@@ -98,3 +98,17 @@ fn direct_comparison_detects_reflectance_off_by_two_percent() {
     );
     assert!(!c.passed, "a 2% reflectance change went undetected: {c}");
 }
+
+/// Smooth conductors: an ideal mirror (material "none") and RGB eta/k.
+#[test]
+fn conductor_matches_mitsuba() {
+    let c = check("conductor", &[], 10);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: the gold-like conductor's k 5% low (3.6 → 3.42 in red) must fail.
+#[test]
+fn conductor_comparison_detects_k_off() {
+    let c = check("conductor", &[("k", "3.42, 2.4, 1.8")], 11);
+    assert!(!c.passed, "a 5% change of k went undetected: {c}");
+}

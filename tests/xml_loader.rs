@@ -562,3 +562,44 @@ fn nested_plugins_and_unreferenced_objects() {
     let e = load("matrix", r#"<shape type="sphere"><transform name="to_world"><matrix value="1 2 3"/></transform></shape>"#, &[]).unwrap_err();
     assert!(e.contains("16 (or 9) values"), "{e}");
 }
+
+/// `conductor`: material "none" (the default) is an ideal mirror (η 0, κ 1); eta and k
+/// may be given; a named material table is refused with a clear message, and so is a
+/// material together with eta, as in Mitsuba.
+#[test]
+fn conductor_parameters() {
+    let shape = |bsdf: &str| format!(r#"<shape type="sphere">{bsdf}</shape>"#);
+    let s = build("conductor_none", &shape(r#"<bsdf type="conductor"/>"#));
+    match &s.bsdfs[0] {
+        Bsdf::Conductor(c) => assert_eq!(*c, mediareg::bsdf::Conductor::ideal_mirror(Vec3::ONE)),
+        b => panic!("{b:?}"),
+    }
+    let s = build(
+        "conductor_eta_k",
+        &shape(
+            r#"<bsdf type="conductor"><rgb name="eta" value="0.2, 0.4, 1.4"/><float name="k" value="3"/></bsdf>"#,
+        ),
+    );
+    match &s.bsdfs[0] {
+        Bsdf::Conductor(c) => {
+            assert_eq!(c.eta, Vec3::new(0.2, 0.4, 1.4));
+            assert_eq!(c.k, Vec3::splat(3.0));
+        }
+        b => panic!("{b:?}"),
+    }
+    let e = build_err(
+        "conductor_au",
+        &shape(r#"<bsdf type="conductor"><string name="material" value="Au"/></bsdf>"#),
+    );
+    assert!(
+        e.contains("\"Au\"") && e.contains("not supported yet"),
+        "{e}"
+    );
+    let e = build_err(
+        "conductor_both",
+        &shape(
+            r#"<bsdf type="conductor"><string name="material" value="Au"/><float name="eta" value="1"/></bsdf>"#,
+        ),
+    );
+    assert!(e.contains("not both"), "{e}");
+}

@@ -1,14 +1,17 @@
-//! Surface scattering: Mitsuba 3's `null`, `diffuse`, `dielectric` and `twosided`.
+//! Surface scattering: Mitsuba 3's `null`, `diffuse`, `dielectric`, `conductor` and
+//! `twosided`.
 //!
 //! All directions are in the local shading frame (z = shading normal), `wi` points away
 //! from the surface toward where the path came from, as in Mitsuba.
 
+pub mod conductor;
 pub mod dielectric;
 
 use std::f32::consts::FRAC_1_PI;
 
 use glam::{Vec2, Vec3, Vec3A};
 
+pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 
 #[derive(Clone, Debug)]
@@ -20,6 +23,8 @@ pub enum Bsdf {
         reflectance: Vec3,
     },
     Dielectric(Dielectric),
+    /// A smooth conductor: Fresnel-weighted mirror reflection.
+    Conductor(Conductor),
     /// Mitsuba's `twosided`: the back side uses `back` (or the same BSDF mirrored).
     TwoSided(Box<[Bsdf; 2]>),
 }
@@ -43,7 +48,7 @@ impl Bsdf {
     /// Whether the BSDF has a non-Dirac component (emitter sampling is worthwhile).
     pub fn is_smooth(&self) -> bool {
         match self {
-            Bsdf::Null | Bsdf::Dielectric(_) => false,
+            Bsdf::Null | Bsdf::Dielectric(_) | Bsdf::Conductor(_) => false,
             Bsdf::Diffuse { .. } => true,
             Bsdf::TwoSided(b) => b[0].is_smooth() || b[1].is_smooth(),
         }
@@ -56,7 +61,7 @@ impl Bsdf {
     /// `f(wi, wo) · |cos θ_o|` and the pdf of sampling `wo` (0 for Dirac lobes).
     pub fn eval_pdf(&self, wi: Vec3A, wo: Vec3A) -> (Vec3, f32) {
         match self {
-            Bsdf::Null | Bsdf::Dielectric(_) => (Vec3::ZERO, 0.0),
+            Bsdf::Null | Bsdf::Dielectric(_) | Bsdf::Conductor(_) => (Vec3::ZERO, 0.0),
             Bsdf::Diffuse { reflectance } => {
                 if wi.z > 0.0 && wo.z > 0.0 {
                     (*reflectance * (FRAC_1_PI * wo.z), FRAC_1_PI * wo.z)
@@ -104,6 +109,7 @@ impl Bsdf {
                 })
             }
             Bsdf::Dielectric(d) => d.sample(wi, s1),
+            Bsdf::Conductor(c) => c.sample(wi),
             Bsdf::TwoSided(b) => {
                 if wi.z > 0.0 {
                     b[0].sample(wi, s1, s2)

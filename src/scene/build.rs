@@ -11,7 +11,7 @@ use super::film::{Film, Rfilter};
 use super::props::Props;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
 use crate::bsdf::dielectric::named_ior;
-use crate::bsdf::{Bsdf, Dielectric};
+use crate::bsdf::{Bsdf, Conductor, Dielectric};
 use crate::emitter::{BSphere, Emitter};
 use crate::error::{err_at, Result, SceneError};
 use crate::geometry::accel::Accel;
@@ -316,7 +316,10 @@ impl Builder<'_> {
             Some(c) => Some(self.medium(c.object)?),
             None => None,
         };
-        p.finish("fov, fov_axis, focal_length, near_clip, far_clip, principal_point_offset_x, principal_point_offset_y, to_world, film, sampler, medium")?;
+        // Every projective camera reads the focal plane's distance (Mitsuba's
+        // ProjectiveCamera); a pinhole has no use for it.
+        p.float("focus_distance", far_clip)?;
+        p.finish("fov, fov_axis, focal_length, near_clip, far_clip, focus_distance, principal_point_offset_x, principal_point_offset_y, to_world, film, sampler, medium")?;
         let camera = PerspectiveCamera {
             to_world: to_mat4(to_world),
             tan_half_fov_x: (0.5 * fov_x).to_radians().tan() as f32,
@@ -611,6 +614,27 @@ impl Builder<'_> {
                     specular_transmittance: st,
                 })
             }
+            "conductor" => {
+                let sr = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
+                let material = p.string("material", "none")?;
+                // Mitsuba: (eta, k) or "none" (η 0, κ 1: an ideal mirror), else a table.
+                if !p.has("eta") && material != "none" {
+                    return Err(p.error(format!(
+                        "conductor material \"{material}\": the named materials (spectral IOR tables) are not supported yet; give eta and k (<float> or <rgb>), or material \"none\""
+                    )));
+                }
+                if material != "none" {
+                    return Err(p.error("give either eta and k, or material, not both"));
+                }
+                let eta = p.color_nonneg("eta", Vec3::ZERO)?;
+                let k = p.color_nonneg("k", Vec3::ONE)?;
+                p.finish("material, eta, k, specular_reflectance")?;
+                Bsdf::Conductor(Conductor {
+                    eta,
+                    k,
+                    specular_reflectance: sr,
+                })
+            }
             "twosided" => {
                 let nested = p.children_of(ObjectKind::Bsdf);
                 let (front, back) = match nested.as_slice() {
@@ -628,7 +652,7 @@ impl Builder<'_> {
                 return Err(unsupported(
                     &p,
                     "bsdf",
-                    "null, diffuse, dielectric, twosided",
+                    "null, diffuse, dielectric, conductor, twosided",
                 ))
             }
         };
