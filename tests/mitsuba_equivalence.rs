@@ -112,3 +112,18 @@ fn conductor_comparison_detects_k_off() {
     let c = check("conductor", &[("k", "3.42, 2.4, 1.8")], 11);
     assert!(!c.passed, "a 5% change of k went undetected: {c}");
 }
+
+/// `envmap`: a rotated, scaled latitude-longitude sky with a sun lights diffuse objects
+/// and a glass sphere, and is seen directly (Mitsuba's lookup, this renderer's sampling).
+#[test]
+fn envmap_matches_mitsuba() {
+    let c = check("envmap", &[], 12);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: the envmap's scale 2% off must fail.
+#[test]
+fn envmap_comparison_detects_scale_off_by_two_percent() {
+    let c = check("envmap", &[("scale", "1.53")], 13);
+    assert!(!c.passed, "a 2% scale change went undetected: {c}");
+}

@@ -603,3 +603,41 @@ fn conductor_parameters() {
     );
     assert!(e.contains("not both"), "{e}");
 }
+
+/// `envmap`: the image must exist and be OpenEXR, `to_world` a rotation, and only one
+/// environment emitter may be given; each refusal says so.
+#[test]
+fn envmap_errors() {
+    let dir = common::root().join("mitsuba_scenes/textures");
+    let env = |extra: &str, file: &str| {
+        format!(
+            r#"<emitter type="envmap"><string name="filename" value="{}"/>{extra}</emitter>"#,
+            dir.join(file).display()
+        )
+    };
+    let e = build_err("envmap_missing", &env("", "no_such_sky.exr"));
+    assert!(
+        e.contains("no_such_sky.exr") && e.contains("not found"),
+        "{e}"
+    );
+    let e = build_err("envmap_png", &env("", "../../README.md"));
+    assert!(e.contains("only OpenEXR"), "{e}");
+    let e = build_err(
+        "envmap_scaled",
+        &env(
+            r#"<transform name="to_world"><scale value="2"/></transform>"#,
+            "sky.exr",
+        ),
+    );
+    assert!(e.contains("must be a rotation"), "{e}");
+    let e = build_err(
+        "envmap_two",
+        &format!(r#"{}<emitter type="constant"/>"#, env("", "sky.exr")),
+    );
+    assert!(e.contains("only one environment emitter"), "{e}");
+    let s = build(
+        "envmap_ok",
+        &env(r#"<float name="scale" value="2"/>"#, "sky.exr"),
+    );
+    assert!(s.environment.is_some());
+}

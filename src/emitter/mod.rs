@@ -1,7 +1,9 @@
-//! Light sources: Mitsuba 3's `area`, `point`, `constant` and `directional`.
+//! Light sources: Mitsuba 3's `area`, `point`, `constant`, `envmap` and `directional`.
 //!
 //! `sample_direction` returns, for a reference point, a direction toward the light, the
 //! distance to travel, the solid-angle pdf (1 for Dirac lights) and `Le / pdf`.
+
+pub mod envmap;
 
 use std::f32::consts::PI;
 
@@ -17,6 +19,8 @@ pub enum Emitter {
     Point { position: Vec3A, intensity: Vec3 },
     /// Uniform environment `radiance` from every direction.
     Constant { radiance: Vec3 },
+    /// An environment image (latitude-longitude).
+    EnvMap(Box<envmap::EnvMap>),
     /// Parallel light travelling along `direction`, `irradiance` on a surface facing it.
     Directional { direction: Vec3A, irradiance: Vec3 },
 }
@@ -131,6 +135,17 @@ impl Emitter {
                     delta: false,
                 })
             }
+            Emitter::EnvMap(m) => {
+                let (d, pdf) = m.sample(s)?;
+                let r = bsphere.radius.max((p_ref - bsphere.center).length());
+                Some(EmitterSample {
+                    d,
+                    p: p_ref + d * (2.0 * r),
+                    pdf,
+                    weight: m.eval(d) / pdf,
+                    delta: false,
+                })
+            }
             Emitter::Directional {
                 direction,
                 irradiance,
@@ -154,6 +169,7 @@ impl Emitter {
         match self {
             Emitter::Area { radiance, .. } if n.dot(-d) > 0.0 => *radiance,
             Emitter::Constant { radiance } => *radiance,
+            Emitter::EnvMap(m) => m.eval(d),
             _ => Vec3::ZERO,
         }
     }
@@ -188,6 +204,7 @@ impl Emitter {
                 }
             }
             Emitter::Constant { .. } => 1.0 / (4.0 * PI),
+            Emitter::EnvMap(m) => m.pdf(d),
             Emitter::Point { .. } | Emitter::Directional { .. } => 0.0,
         }
     }

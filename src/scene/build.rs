@@ -12,6 +12,7 @@ use super::props::Props;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
 use crate::bsdf::dielectric::named_ior;
 use crate::bsdf::{Bsdf, Conductor, Dielectric};
+use crate::emitter::envmap::EnvMap;
 use crate::emitter::{BSphere, Emitter};
 use crate::error::{err_at, Result, SceneError};
 use crate::geometry::accel::Accel;
@@ -659,6 +660,73 @@ impl Builder<'_> {
         Ok(b)
     }
 
+    /// `envmap`: an OpenEXR latitude-longitude image, `scale`, a rotation `to_world`;
+    /// `mis_compensation` only changes Mitsuba's sampling, not the image (read, unused).
+    fn envmap(&self, p: &Props) -> Result<EnvMap> {
+        let Some((name, loc)) = p.string_opt("filename")? else {
+            return Err(p.error("envmap needs a filename (an OpenEXR latitude-longitude image)"));
+        };
+        let path = resolve_path(&self.desc.search_path, name).ok_or_else(|| {
+            SceneError::at(loc, format!("environment map \"{name}\" not found"))
+                .with_hint("add its folder with -a DIR")
+        })?;
+        if path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+            != Some("exr")
+        {
+            return Err(SceneError::at(
+                loc,
+                format!("environment map \"{name}\": only OpenEXR (.exr) images are supported"),
+            ));
+        }
+        let img = crate::image::read_exr(&path)
+            .map_err(|e| SceneError::at(loc, format!("environment map \"{name}\": {e:#}")))?;
+        if img.width < 2 || img.height < 3 {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "environment map \"{name}\" is {}x{}: at least 2x3 pixels, as Mitsuba requires",
+                    img.width, img.height
+                ),
+            ));
+        }
+        if let Some(bad) = img
+            .pixels
+            .iter()
+            .flatten()
+            .find(|v| !v.is_finite() || **v < 0.0)
+        {
+            return Err(SceneError::at(
+                loc,
+                format!("environment map \"{name}\" holds the value {bad}: radiance must be finite and ≥ 0"),
+            ));
+        }
+        let scale = p.float("scale", 1.0)?;
+        if !(scale.is_finite() && scale >= 0.0) {
+            return Err(p.error(format!("scale = {scale}: must be finite and ≥ 0")));
+        }
+        let m = p.transform("to_world")?;
+        let r = glam::DMat3::from_mat4(m);
+        if (r.transpose() * r - glam::DMat3::IDENTITY)
+            .to_cols_array()
+            .iter()
+            .any(|v| v.abs() > 1e-5)
+        {
+            return Err(p.error("an envmap's to_world must be a rotation (no scale or shear)"));
+        }
+        p.bool("mis_compensation", false)?;
+        Ok(EnvMap::new(
+            img.width,
+            img.height,
+            &img.pixels,
+            scale as f32,
+            r.as_mat3(),
+        ))
+    }
+
     fn emitter(&mut self, id: ObjId, shape: Option<u32>) -> Result<u32> {
         let p = Props::new(self.desc, id);
         let e = match (p.obj.plugin.as_str(), shape) {
@@ -699,6 +767,15 @@ impl Builder<'_> {
                 self.environment = Some(self.emitters.len() as u32);
                 Emitter::Constant { radiance }
             }
+            ("envmap", None) => {
+                if self.environment.is_some() {
+                    return Err(p.error("only one environment emitter is allowed"));
+                }
+                let m = self.envmap(&p)?;
+                p.finish("filename, scale, to_world, mis_compensation")?;
+                self.environment = Some(self.emitters.len() as u32);
+                Emitter::EnvMap(Box::new(m))
+            }
             ("directional", None) => {
                 let irradiance = emissive(&p, "irradiance")?;
                 let dir = p.vector_opt("direction")?;
@@ -723,7 +800,7 @@ impl Builder<'_> {
                 return Err(unsupported(
                     &p,
                     "emitter",
-                    "area, point, constant, directional",
+                    "area, point, constant, envmap, directional",
                 ))
             }
         };
