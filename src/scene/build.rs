@@ -191,8 +191,7 @@ fn direct_integrator(p: Props) -> Result<IntegratorSettings> {
         }
         Ok(v as u32)
     };
-    let has = |name: &str| p.obj.props.iter().any(|q| q.name == name);
-    if has("shading_samples") && (has("emitter_samples") || has("bsdf_samples")) {
+    if p.has("shading_samples") && (p.has("emitter_samples") || p.has("bsdf_samples")) {
         return Err(p.error(
             "give either shading_samples or emitter_samples/bsdf_samples, not both (as Mitsuba requires)",
         ));
