@@ -15,6 +15,23 @@ fn mediareg() -> Command {
     Command::new(env!("CARGO_BIN_EXE_mediareg"))
 }
 
+/// Runs `mediareg render SCENE ARGS -o OUT` and asserts it succeeded.
+fn render_ok(scene: &Path, args: &[&str], out: &Path) {
+    let st = mediareg()
+        .arg("render")
+        .arg(scene)
+        .args(args)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+}
+
 fn cube() -> std::path::PathBuf {
     common::root().join("mitsuba_scenes/medium_cube.xml")
 }
@@ -92,26 +109,11 @@ fn sigint_writes_the_image_so_far_with_its_spp() {
         .flatten()
         .all(|v| v.is_finite() && *v >= 0.0));
     let full_out = dir.join("full.exr");
-    let st = mediareg()
-        .arg("render")
-        .arg(cube())
-        .args([
-            "-D",
-            "res=48",
-            "--seed",
-            "5",
-            "--no-png",
-            "--spp",
-            &spp.to_string(),
-            "-o",
-        ])
-        .arg(&full_out)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
+    let spp_arg = spp.to_string();
+    render_ok(
+        &cube(),
+        &["-D", "res=48", "--seed", "5", "--no-png", "--spp", &spp_arg],
+        &full_out,
     );
     assert_eq!(read_exr_int_attribute(&full_out, "spp").unwrap(), Some(spp));
     let full = read_exr(&full_out).unwrap();
@@ -136,19 +138,12 @@ fn same_seed_same_file_across_runs() {
     let mut files = Vec::new();
     for (run, threads) in [(0, "2"), (1, "2"), (2, "1")] {
         let out = dir.join(format!("run{run}.exr"));
-        let st = mediareg()
-            .arg("render")
-            .arg(common::root().join("mitsuba_scenes/chromatic_sphere.xml"))
-            .args([
-                "-D", "res=40", "--spp", "8", "--seed", "11", "--no-png", "-t", threads, "-o",
-            ])
-            .arg(&out)
-            .output()
-            .unwrap();
-        assert!(
-            st.status.success(),
-            "{}",
-            String::from_utf8_lossy(&st.stderr)
+        render_ok(
+            &common::root().join("mitsuba_scenes/chromatic_sphere.xml"),
+            &[
+                "-D", "res=40", "--spp", "8", "--seed", "11", "--no-png", "-t", threads,
+            ],
+            &out,
         );
         files.push(std::fs::read(&out).unwrap());
     }
