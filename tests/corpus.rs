@@ -43,7 +43,12 @@ const EXPECTED: &[(&str, Status)] = &[
     ),
     (
         "mdata_homo_dielectric_envmap",
-        Refused("unsupported integrator plugin \"moment\""),
+        Matches {
+            reference: "corpus_mdata_homo_dielectric_envmap",
+            params: &[],
+            chunks: 16,
+            spp: 128,
+        },
     ),
     (
         "mdata_homo_emitter_inside_medium",
@@ -51,11 +56,16 @@ const EXPECTED: &[(&str, Status)] = &[
     ),
     (
         "mdata_homo_null_envmap",
-        Refused("unsupported integrator plugin \"moment\""),
+        Matches {
+            reference: "corpus_mdata_homo_null_envmap",
+            params: &[],
+            chunks: 16,
+            spp: 128,
+        },
     ),
     (
         "mdata_homo_obj_inside_medium",
-        Refused("unsupported integrator plugin \"moment\""),
+        Refused("unsupported bsdf plugin \"thindielectric\""),
     ),
     (
         "mdata_homo_roughdielectric_spot",
@@ -63,27 +73,30 @@ const EXPECTED: &[(&str, Status)] = &[
     ),
     (
         "mdata_homo_spectral_sigmat",
-        Refused("unsupported integrator plugin \"moment\""),
+        Refused("unsupported integrator plugin \"volpathmis\""),
     ),
+    // Heterogeneous media are out of scope: refused by name.
     (
         "mdata_hetero_sigmat",
-        Refused("unsupported integrator plugin \"moment\""),
+        Refused("unsupported medium plugin \"heterogeneous\""),
     ),
+    // Heterogeneous media are out of scope: refused by name.
     (
         "mdata_hetero_sigmat_albedo",
-        Refused("unsupported integrator plugin \"moment\""),
+        Refused("unsupported medium plugin \"heterogeneous\""),
     ),
+    // Heterogeneous media are out of scope: refused by name.
     (
         "mdata_hetero_spectral_noscat",
-        Refused("unsupported integrator plugin \"moment\""),
+        Refused("unsupported medium plugin \"heterogeneous\""),
     ),
     (
         "mdata_hetero_spectral_mis",
-        Refused("unsupported integrator plugin \"moment\""),
+        Refused("unsupported integrator plugin \"volpathmis\""),
     ),
     (
         "mdata_surf_area_light_volpath",
-        Refused("unsupported integrator plugin \"moment\""),
+        Refused("unsupported bsdf plugin \"plastic\""),
     ),
     ("mdata_cbox", Refused("sampled spectrum")),
     (

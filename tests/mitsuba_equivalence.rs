@@ -127,3 +127,18 @@ fn envmap_comparison_detects_scale_off_by_two_percent() {
     let c = check("envmap", &[("scale", "1.53")], 13);
     assert!(!c.passed, "a 2% scale change went undetected: {c}");
 }
+
+/// `checkerboard` reflectance: on an OBJ quad's texture coordinates (v flipped as
+/// Mitsuba reads OBJ) through a scaled, shifted to_uv, and on a rectangle's uv.
+#[test]
+fn checkerboard_matches_mitsuba() {
+    let c = check("checkerboard", &[], 14);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: one checkerboard color 2% off must fail.
+#[test]
+fn checkerboard_comparison_detects_color_off_by_two_percent() {
+    let c = check("checkerboard", &[("color1", "0.714, 0.612, 0.204")], 15);
+    assert!(!c.passed, "a 2% color change went undetected: {c}");
+}

@@ -418,7 +418,7 @@ fn include_is_relative_to_the_scene_folder() {
     assert_eq!(scene.shapes.len(), 1);
     match &scene.bsdfs[scene.shapes[0].bsdf as usize] {
         Bsdf::Diffuse { reflectance } => assert_vec3(
-            *reflectance,
+            reflectance.constant().expect("a constant reflectance"),
             [0.25, 0.5, 0.75],
             1e-6,
             "included reflectance",
@@ -535,9 +535,12 @@ fn nested_plugins() {
         Bsdf::TwoSided(b) => {
             for side in b.iter() {
                 match side {
-                    Bsdf::Diffuse { reflectance } => {
-                        assert_vec3(*reflectance, [0.1, 0.2, 0.3], 1e-6, "twosided side")
-                    }
+                    Bsdf::Diffuse { reflectance } => assert_vec3(
+                        reflectance.constant().expect("constant"),
+                        [0.1, 0.2, 0.3],
+                        1e-6,
+                        "twosided side",
+                    ),
                     other => panic!("twosided side should be diffuse, is {other:?}"),
                 }
             }
@@ -1112,7 +1115,7 @@ fn twosided_one_and_two_nested() {
     let sides = |i: usize| -> [Vec3; 2] {
         match &scene.bsdfs[scene.shapes[i].bsdf as usize] {
             Bsdf::TwoSided(b) => [0, 1].map(|k| match &b[k] {
-                Bsdf::Diffuse { reflectance } => *reflectance,
+                Bsdf::Diffuse { reflectance } => reflectance.constant().expect("constant"),
                 other => panic!("side {k}: {other:?}"),
             }),
             other => panic!("expected twosided, got {other:?}"),

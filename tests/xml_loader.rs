@@ -641,3 +641,33 @@ fn envmap_errors() {
     );
     assert!(s.environment.is_some());
 }
+
+/// Textures and `moment`: a checkerboard on a shape without texture coordinates here,
+/// an unknown texture plugin and a `moment` with two nested integrators are refused
+/// clearly; `moment` around one integrator is that integrator, with a warning.
+#[test]
+fn textures_and_moment() {
+    let checks = r#"<texture type="checkerboard" name="reflectance"/>"#;
+    let e = build_err(
+        "texture_sphere",
+        &format!(r#"<shape type="sphere"><bsdf type="diffuse">{checks}</bsdf></shape>"#),
+    );
+    assert!(e.contains("textured bsdf on a \"sphere\""), "{e}");
+    let e = build_err(
+        "texture_bitmap",
+        r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"/></bsdf></shape>"#,
+    );
+    assert!(e.contains("unsupported texture plugin \"bitmap\""), "{e}");
+    let e = build_err(
+        "moment_two",
+        r#"<integrator type="moment"><integrator type="path"/><integrator type="volpath"/></integrator>"#,
+    );
+    assert!(e.contains("moment with 2 nested integrators"), "{e}");
+    let s = build(
+        "moment_one",
+        r#"<integrator type="moment"><integrator type="volpath"><integer name="max_depth" value="7"/></integrator></integrator>"#,
+    );
+    assert_eq!(s.integrator.kind, IntegratorKind::Volpath);
+    assert_eq!(s.integrator.max_depth, 7);
+    assert!(s.warnings.iter().any(|w| w.contains("moment")));
+}

@@ -6,6 +6,7 @@
 
 pub mod conductor;
 pub mod dielectric;
+pub mod texture;
 
 use std::f32::consts::FRAC_1_PI;
 
@@ -13,6 +14,7 @@ use glam::{Vec2, Vec3, Vec3A};
 
 pub use conductor::Conductor;
 pub use dielectric::Dielectric;
+pub use texture::Texture;
 
 #[derive(Clone, Debug)]
 pub enum Bsdf {
@@ -20,7 +22,7 @@ pub enum Bsdf {
     Null,
     /// Lambertian reflection, `reflectance / π · cos θ_o`, front side only.
     Diffuse {
-        reflectance: Vec3,
+        reflectance: Texture,
     },
     Dielectric(Dielectric),
     /// A smooth conductor: Fresnel-weighted mirror reflection.
@@ -54,17 +56,27 @@ impl Bsdf {
         }
     }
 
+    /// Whether a parameter varies with the texture coordinates.
+    pub fn is_textured(&self) -> bool {
+        match self {
+            Bsdf::Diffuse { reflectance } => reflectance.constant().is_none(),
+            Bsdf::TwoSided(b) => b[0].is_textured() || b[1].is_textured(),
+            _ => false,
+        }
+    }
+
     pub fn is_null(&self) -> bool {
         matches!(self, Bsdf::Null)
     }
 
-    /// `f(wi, wo) · |cos θ_o|` and the pdf of sampling `wo` (0 for Dirac lobes).
-    pub fn eval_pdf(&self, wi: Vec3A, wo: Vec3A) -> (Vec3, f32) {
+    /// `f(wi, wo) · |cos θ_o|` and the pdf of sampling `wo` (0 for Dirac lobes), at
+    /// texture coordinates `uv`.
+    pub fn eval_pdf(&self, wi: Vec3A, wo: Vec3A, uv: Vec2) -> (Vec3, f32) {
         match self {
             Bsdf::Null | Bsdf::Dielectric(_) | Bsdf::Conductor(_) => (Vec3::ZERO, 0.0),
             Bsdf::Diffuse { reflectance } => {
                 if wi.z > 0.0 && wo.z > 0.0 {
-                    (*reflectance * (FRAC_1_PI * wo.z), FRAC_1_PI * wo.z)
+                    (reflectance.eval(uv) * (FRAC_1_PI * wo.z), FRAC_1_PI * wo.z)
                 } else {
                     (Vec3::ZERO, 0.0)
                 }
@@ -72,16 +84,17 @@ impl Bsdf {
             Bsdf::TwoSided(b) => {
                 let (front, back) = (&b[0], &b[1]);
                 if wi.z > 0.0 {
-                    front.eval_pdf(wi, wo)
+                    front.eval_pdf(wi, wo, uv)
                 } else {
-                    back.eval_pdf(flip(wi), flip(wo))
+                    back.eval_pdf(flip(wi), flip(wo), uv)
                 }
             }
         }
     }
 
-    /// Samples an outgoing direction. `None` when the sample carries no energy.
-    pub fn sample(&self, wi: Vec3A, s1: f32, s2: Vec2) -> Option<BsdfSample> {
+    /// Samples an outgoing direction at texture coordinates `uv`. `None` when the
+    /// sample carries no energy.
+    pub fn sample(&self, wi: Vec3A, s1: f32, s2: Vec2, uv: Vec2) -> Option<BsdfSample> {
         match self {
             Bsdf::Null => Some(BsdfSample {
                 wo: -wi,
@@ -102,7 +115,7 @@ impl Bsdf {
                 Some(BsdfSample {
                     wo,
                     pdf: FRAC_1_PI * wo.z,
-                    weight: *reflectance,
+                    weight: reflectance.eval(uv),
                     eta: 1.0,
                     delta: false,
                     null: false,
@@ -112,9 +125,9 @@ impl Bsdf {
             Bsdf::Conductor(c) => c.sample(wi),
             Bsdf::TwoSided(b) => {
                 if wi.z > 0.0 {
-                    b[0].sample(wi, s1, s2)
+                    b[0].sample(wi, s1, s2, uv)
                 } else {
-                    let mut bs = b[1].sample(flip(wi), s1, s2)?;
+                    let mut bs = b[1].sample(flip(wi), s1, s2, uv)?;
                     bs.wo = flip(bs.wo);
                     Some(bs)
                 }
@@ -142,13 +155,13 @@ mod tests {
     #[test]
     fn diffuse_sample_matches_eval() {
         let b = Bsdf::Diffuse {
-            reflectance: Vec3::new(0.2, 0.5, 0.8),
+            reflectance: Texture::Constant(Vec3::new(0.2, 0.5, 0.8)),
         };
         let wi = Vec3A::new(0.3, 0.1, 0.9).normalize();
         for i in 0..50 {
             let s = Vec2::new((i as f32 + 0.5) / 50.0, ((i * 7) % 50) as f32 / 50.0 + 0.01);
-            let bs = b.sample(wi, 0.5, s).unwrap();
-            let (f, pdf) = b.eval_pdf(wi, bs.wo);
+            let bs = b.sample(wi, 0.5, s, Vec2::ZERO).unwrap();
+            let (f, pdf) = b.eval_pdf(wi, bs.wo, Vec2::ZERO);
             assert!((pdf - bs.pdf).abs() < 1e-5);
             assert!(((f / pdf) - bs.weight).abs().max_element() < 1e-4);
         }
@@ -158,15 +171,15 @@ mod tests {
     fn twosided_mirrors_the_back() {
         let b = Bsdf::TwoSided(Box::new([
             Bsdf::Diffuse {
-                reflectance: Vec3::splat(0.5),
+                reflectance: Texture::Constant(Vec3::splat(0.5)),
             },
             Bsdf::Diffuse {
-                reflectance: Vec3::splat(0.5),
+                reflectance: Texture::Constant(Vec3::splat(0.5)),
             },
         ]));
         let wi = Vec3A::new(0.0, 0.0, -1.0);
         let wo = Vec3A::new(0.0, 0.6, -0.8);
-        let (f, pdf) = b.eval_pdf(wi, wo);
+        let (f, pdf) = b.eval_pdf(wi, wo, Vec2::ZERO);
         assert!((f.x - 0.5 * FRAC_1_PI * 0.8).abs() < 1e-6 && pdf > 0.0);
     }
 }

@@ -16,6 +16,8 @@ pub struct TriangleMesh {
     /// Per-vertex shading normals; `None` with `face_normals`.
     pub normals: Option<Vec<Vec3A>>,
     pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex texture coordinates, when the file has them.
+    pub uvs: Option<Vec<Vec2>>,
     pub flip_normals: bool,
     /// Cumulative triangle areas, for sampling a point uniformly by area.
     area_cdf: Vec<f32>,
@@ -27,6 +29,7 @@ pub struct RawMesh {
     pub positions: Vec<Vec3A>,
     pub normals: Option<Vec<Vec3A>>,
     pub triangles: Vec<[u32; 3]>,
+    pub uvs: Option<Vec<Vec2>>,
     /// What the reader accepted but the user should hear about.
     pub warnings: Vec<String>,
 }
@@ -198,6 +201,7 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
         positions,
         normals: has_normals.then_some(normals),
         triangles,
+        uvs: None,
         warnings,
     })
 }
@@ -220,6 +224,8 @@ pub fn read_obj(path: &Path) -> Result<RawMesh> {
     let mut positions = Vec::new();
     let mut normals = Vec::new();
     let mut all_have_normals = true;
+    let mut uvs = Vec::new();
+    let mut all_have_uvs = true;
     let mut polys = Vec::new();
     for m in &models {
         let mesh = &m.mesh;
@@ -237,6 +243,11 @@ pub fn read_obj(path: &Path) -> Result<RawMesh> {
         } else {
             all_have_normals = false;
         }
+        if mesh.texcoords.len() == 2 * nv {
+            uvs.extend(mesh.texcoords.chunks(2).map(|t| Vec2::new(t[0], t[1])));
+        } else {
+            all_have_uvs = false;
+        }
         for tri in mesh.indices.chunks(3) {
             polys.push(tri.iter().map(|&i| i as i64 + base).collect::<Vec<_>>());
         }
@@ -246,6 +257,7 @@ pub fn read_obj(path: &Path) -> Result<RawMesh> {
         positions,
         normals: (all_have_normals && !normals.is_empty()).then_some(normals),
         triangles,
+        uvs: (all_have_uvs && !uvs.is_empty()).then_some(uvs),
         warnings: Vec::new(),
     })
 }
@@ -313,6 +325,7 @@ pub fn cube() -> RawMesh {
         positions,
         normals: Some(normals),
         triangles,
+        uvs: None,
         warnings: Vec::new(),
     }
 }
@@ -366,6 +379,7 @@ impl TriangleMesh {
             positions,
             normals,
             triangles: raw.triangles,
+            uvs: raw.uvs,
             flip_normals,
             area_cdf,
             total_area: total as f32,
@@ -400,6 +414,18 @@ impl TriangleMesh {
         }
         let t = e2.dot(qv) * inv;
         (t > 0.0 && t < tmax).then_some((t, u, v))
+    }
+
+    /// Texture coordinates at barycentrics (u, v): interpolated from the file's, else
+    /// (u, v) themselves, as Mitsuba does for a mesh without texture coordinates.
+    pub fn uv(&self, tri: u32, u: f32, v: f32) -> Vec2 {
+        match &self.uvs {
+            Some(t) => {
+                let [a, b, c] = self.triangles[tri as usize].map(|i| t[i as usize]);
+                a * (1.0 - u - v) + b * u + c * v
+            }
+            None => Vec2::new(u, v),
+        }
     }
 
     /// Position, geometric normal and shading normal at barycentrics (u, v).

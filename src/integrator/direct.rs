@@ -73,7 +73,7 @@ pub fn sample(
     for _ in 0..bsdf_samples {
         let s1 = rng.next_1d();
         let s2 = rng.next_2d();
-        let Some(bs) = bsdf.sample(wi, s1, s2) else {
+        let Some(bs) = bsdf.sample(wi, s1, s2, h.uv) else {
             continue;
         };
         if bs.weight == Vec3::ZERO {

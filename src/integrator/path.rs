@@ -109,7 +109,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         // ---- BSDF sampling ----
         let s1 = rng.next_1d();
         let s2 = rng.next_2d();
-        let sampled = bsdf.sample(wi, s1, s2);
+        let sampled = bsdf.sample(wi, s1, s2, h.uv);
         // Any scattering off a non-null surface makes the environment count.
         if !bsdf.is_null() {
             valid_ray = true;

@@ -327,7 +327,7 @@ pub fn sample(
         // ---- BSDF sampling ----
         let s1 = rng.next_1d();
         let s2 = rng.next_2d();
-        let Some(bs) = bsdf.sample(wi, s1, s2) else {
+        let Some(bs) = bsdf.sample(wi, s1, s2, h.uv) else {
             break;
         };
         let wo = h.sh_frame.to_world(bs.wo);

@@ -11,7 +11,7 @@ use super::film::{Film, Rfilter};
 use super::props::Props;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
 use crate::bsdf::dielectric::named_ior;
-use crate::bsdf::{Bsdf, Conductor, Dielectric};
+use crate::bsdf::{Bsdf, Conductor, Dielectric, Texture};
 use crate::emitter::envmap::EnvMap;
 use crate::emitter::{BSphere, Emitter};
 use crate::error::{err_at, Result, SceneError};
@@ -78,8 +78,14 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
             max_depth: u32::MAX,
             rr_depth: 5,
             hide_emitters: false,
+            moment_aovs_dropped: false,
         },
     };
+    if integrator.moment_aovs_dropped {
+        b.warnings.push(
+            "integrator \"moment\": the image is its nested integrator's; the second-moment AOVs Mitsuba adds to the EXR are not written".into(),
+        );
+    }
     for c in root.children_of(ObjectKind::Shape) {
         b.shape(c.object)?;
     }
@@ -105,7 +111,9 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         [_, second, ..] => return err_at(&second.loc, "only one <sensor> per scene is supported"),
     };
     let (camera, camera_medium, film, spp, seed) = b.sensor(sensor)?;
-    root.finish("integrator, sensor, shape, emitter, bsdf, medium")?;
+    // Top-level textures are used where a bsdf refers to them by id.
+    root.children_of(ObjectKind::Texture);
+    root.finish("integrator, sensor, shape, emitter, bsdf, medium, texture")?;
 
     let refs: Vec<&Geometry> = b.geometries.iter().collect();
     let accel = Accel::build(&refs);
@@ -216,16 +224,35 @@ fn direct_integrator(p: Props) -> Result<IntegratorSettings> {
         max_depth: 2,
         rr_depth: u32::MAX,
         hide_emitters: false,
+        moment_aovs_dropped: false,
     })
 }
 
 impl Builder<'_> {
+    /// Mitsuba's `moment`: the image is its nested integrator's (Mitsuba returns the
+    /// first nested integrator's radiance); the moment AOVs it adds to the EXR are not
+    /// written here (a warning says so).
+    fn moment_integrator(&self, p: Props) -> Result<IntegratorSettings> {
+        let nested = p.children_of(ObjectKind::Integrator);
+        let [inner] = nested.as_slice() else {
+            return Err(p.error(format!(
+                "moment with {} nested integrators: exactly one is supported",
+                nested.len()
+            )));
+        };
+        let mut settings = self.integrator(inner.object)?;
+        p.finish("(one nested integrator)")?;
+        settings.moment_aovs_dropped = true;
+        Ok(settings)
+    }
+
     fn integrator(&self, id: ObjId) -> Result<IntegratorSettings> {
         let p = Props::new(self.desc, id);
         let kind = match p.obj.plugin.as_str() {
             "path" => IntegratorKind::Path,
             "volpath" => IntegratorKind::Volpath,
             "direct" => return direct_integrator(p),
+            "moment" => return self.moment_integrator(p),
             _ => return Err(unsupported(&p, "integrator", "path, volpath, direct")),
         };
         let max_depth = p.int("max_depth", -1)?;
@@ -249,6 +276,7 @@ impl Builder<'_> {
             },
             rr_depth: rr_depth.min(u32::MAX as i64) as u32,
             hide_emitters,
+            moment_aovs_dropped: false,
         })
     }
 
@@ -455,15 +483,19 @@ impl Builder<'_> {
                         ))
                 })?;
                 let face_normals = p.bool("face_normals", false)?;
-                let raw = if p.obj.plugin == "ply" {
+                let mut raw = if p.obj.plugin == "ply" {
                     read_ply(&path)
                 } else {
-                    // Texture coordinates are not used by any supported BSDF.
-                    p.bool("flip_tex_coords", true)?;
                     read_obj(&path)
                 }
                 // Name the scene line of the <shape> too, not only the mesh file.
                 .map_err(|e| SceneError::at(p.loc(), format!("{}: {e}", p.obj.label())))?;
+                // Mitsuba flips an OBJ's v (v ↦ 1 − v) unless told not to.
+                if p.obj.plugin == "obj" && p.bool("flip_tex_coords", true)? {
+                    if let Some(uvs) = &mut raw.uvs {
+                        uvs.iter_mut().for_each(|t| t.y = 1.0 - t.y);
+                    }
+                }
                 self.warnings
                     .extend(raw.warnings.iter().map(|w| format!("{}: {w}", p.loc())));
                 Geometry::Mesh(TriangleMesh::new(
@@ -539,7 +571,7 @@ impl Builder<'_> {
                 // Mitsuba's default: diffuse 0.5, or black for an emitter.
                 let r = if emitter.is_some() { 0.0 } else { 0.5 };
                 self.bsdfs.push(Bsdf::Diffuse {
-                    reflectance: Vec3::splat(r),
+                    reflectance: Texture::Constant(Vec3::splat(r)),
                 });
                 self.bsdfs.len() as u32 - 1
             }
@@ -558,6 +590,16 @@ impl Builder<'_> {
             "sphere" => "center, radius, to_world, flip_normals, bsdf, emitter, interior, exterior",
             _ => "to_world, flip_normals, bsdf, emitter, interior, exterior",
         };
+        // Texture coordinates exist on meshes and rectangles only (Mitsuba's cube, sphere
+        // and disk have their own, not implemented here).
+        if self.bsdfs[bsdf as usize].is_textured()
+            && matches!(p.obj.plugin.as_str(), "cube" | "sphere" | "disk")
+        {
+            return Err(p.error(format!(
+                "a textured bsdf on a \"{}\" shape is not supported yet (texture coordinates exist on ply/obj meshes and rectangles)",
+                p.obj.plugin
+            )));
+        }
         // An area light is sampled with pdf 1 / area.
         if emitter.is_some() && !(geometry.area() > 0.0 && geometry.area().is_finite()) {
             return Err(p.error(format!(
@@ -587,6 +629,41 @@ impl Builder<'_> {
         Ok(i)
     }
 
+    /// A reflectance in [0, 1]: a constant, or a nested (or referenced) `<texture>`.
+    fn reflectance(&self, p: &Props, name: &str, default: Vec3) -> Result<Texture> {
+        let in_unit = |c: Vec3, p: &Props| -> Result<Vec3> {
+            if c.max_element() > 1.0 {
+                return Err(p.error(format!("{name} {c} must be in [0, 1]")));
+            }
+            Ok(c)
+        };
+        let Some(child) = p.named_child_of(name, ObjectKind::Texture)? else {
+            return Ok(Texture::Constant(in_unit(
+                p.color_nonneg(name, default)?,
+                p,
+            )?));
+        };
+        let t = Props::new(self.desc, child.object);
+        if t.obj.plugin != "checkerboard" {
+            return Err(unsupported(&t, "texture", "checkerboard"));
+        }
+        let color0 = in_unit(t.color_nonneg("color0", Vec3::splat(0.4))?, &t)?;
+        let color1 = in_unit(t.color_nonneg("color1", Vec3::splat(0.2))?, &t)?;
+        // Mitsuba's to_uv is a 2D affine map: the 4x4 matrix's upper-left 2x2 and its
+        // translation.
+        let m = t.transform("to_uv")?;
+        let to_uv = [
+            [m.x_axis.x as f32, m.y_axis.x as f32, m.w_axis.x as f32],
+            [m.x_axis.y as f32, m.y_axis.y as f32, m.w_axis.y as f32],
+        ];
+        t.finish("color0, color1, to_uv")?;
+        Ok(Texture::Checkerboard {
+            color0,
+            color1,
+            to_uv,
+        })
+    }
+
     fn bsdf_value(&self, id: ObjId) -> Result<Bsdf> {
         let p = Props::new(self.desc, id);
         let b = match p.obj.plugin.as_str() {
@@ -595,12 +672,9 @@ impl Builder<'_> {
                 Bsdf::Null
             }
             "diffuse" => {
-                let r = p.color_nonneg("reflectance", Vec3::splat(0.5))?;
-                if r.max_element() > 1.0 {
-                    return Err(p.error(format!("reflectance {r} must be in [0, 1]")));
-                }
+                let reflectance = self.reflectance(&p, "reflectance", Vec3::splat(0.5))?;
                 p.finish("reflectance")?;
-                Bsdf::Diffuse { reflectance: r }
+                Bsdf::Diffuse { reflectance }
             }
             "dielectric" => {
                 let int_ior = ior(&p, "int_ior", "bk7")?;

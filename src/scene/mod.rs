@@ -6,7 +6,7 @@ pub mod cost;
 pub mod film;
 pub mod props;
 
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 
 use crate::bsdf::Bsdf;
 use crate::emitter::{BSphere, Emitter};
@@ -38,6 +38,9 @@ pub struct IntegratorSettings {
     pub max_depth: u32,
     pub rr_depth: u32,
     pub hide_emitters: bool,
+    /// The file asked for Mitsuba's `moment` around this integrator: its image is this
+    /// one's, and the second-moment AOVs Mitsuba would add are not written.
+    pub moment_aovs_dropped: bool,
 }
 
 /// What a shape is made of and what it emits, besides its geometry.
@@ -82,6 +85,8 @@ pub struct SurfaceInteraction {
     pub n: Vec3A,
     /// Shading frame (around the interpolated normal).
     pub sh_frame: Frame,
+    /// Texture coordinates (meshes and rectangles; 0 on other shapes).
+    pub uv: Vec2,
     pub shape: u32,
 }
 
@@ -131,18 +136,28 @@ impl Scene {
     }
 
     fn interaction(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> SurfaceInteraction {
-        let (p, n, sh_n) = match &self.geometries[hit.shape as usize] {
-            Geometry::Mesh(m) => m.surface(hit.prim, hit.u, hit.v),
+        let (p, n, sh_n, uv) = match &self.geometries[hit.shape as usize] {
+            Geometry::Mesh(m) => {
+                let (p, n, sh_n) = m.surface(hit.prim, hit.u, hit.v);
+                (p, n, sh_n, m.uv(hit.prim, hit.u, hit.v))
+            }
             Geometry::Sphere(s) => {
                 // Project onto the sphere to remove the error of o + t d.
                 let p0 = o + d * hit.t;
                 let p = s.center + (p0 - s.center).normalize_or_zero() * s.radius;
                 let n = s.normal_at(p);
-                (p, n, n)
+                (p, n, n, Vec2::ZERO)
             }
             Geometry::Planar(pl) => {
                 let p = o + d * hit.t;
-                (p, pl.normal, pl.normal)
+                // Mitsuba's rectangle: uv = (local + 1) / 2 over [-1, 1]².
+                let uv = if pl.is_disk {
+                    Vec2::ZERO
+                } else {
+                    let l = pl.to_local.transform_point3a(p);
+                    Vec2::new(0.5 * l.x + 0.5, 0.5 * l.y + 0.5)
+                };
+                (p, pl.normal, pl.normal, uv)
             }
         };
         SurfaceInteraction {
@@ -150,6 +165,7 @@ impl Scene {
             p,
             n,
             sh_frame: Frame::new(sh_n),
+            uv,
             shape: hit.shape,
         }
     }

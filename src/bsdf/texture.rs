@@ -1,0 +1,71 @@
+//! Textures a BSDF parameter may be: a constant, or Mitsuba's `checkerboard`
+//! (`src/textures/checkerboard.cpp`): with uv' = to_uv · uv and the mask
+//! m = frac(uv') > ½ per axis, color0 where m.x = m.y, else color1.
+
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Texture {
+    Constant(Vec3),
+    Checkerboard {
+        color0: Vec3,
+        color1: Vec3,
+        /// The 2D affine `to_uv`: rows (a, b, tx) and (c, d, ty).
+        to_uv: [[f32; 3]; 2],
+    },
+}
+
+impl Texture {
+    #[inline]
+    pub fn eval(&self, uv: Vec2) -> Vec3 {
+        match self {
+            Texture::Constant(c) => *c,
+            Texture::Checkerboard {
+                color0,
+                color1,
+                to_uv: [r0, r1],
+            } => {
+                let u = r0[0] * uv.x + r0[1] * uv.y + r0[2];
+                let v = r1[0] * uv.x + r1[1] * uv.y + r1[2];
+                if (u - u.floor() > 0.5) == (v - v.floor() > 0.5) {
+                    *color0
+                } else {
+                    *color1
+                }
+            }
+        }
+    }
+
+    /// The value, when it does not vary.
+    pub fn constant(&self) -> Option<Vec3> {
+        match self {
+            Texture::Constant(c) => Some(*c),
+            Texture::Checkerboard { .. } => None,
+        }
+    }
+}
+
+/// Tests compare a constant reflectance with a color directly.
+impl PartialEq<Vec3> for Texture {
+    fn eq(&self, other: &Vec3) -> bool {
+        self.constant() == Some(*other)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checkerboard_squares() {
+        let t = Texture::Checkerboard {
+            color0: Vec3::ZERO,
+            color1: Vec3::ONE,
+            to_uv: [[2.0, 0.0, 0.0], [0.0, 2.0, 0.0]],
+        };
+        assert_eq!(t.eval(Vec2::new(0.1, 0.1)), Vec3::ZERO); // both halves low
+        assert_eq!(t.eval(Vec2::new(0.3, 0.1)), Vec3::ONE); // u' 0.6: high, v' low
+        assert_eq!(t.eval(Vec2::new(0.3, 0.3)), Vec3::ZERO);
+        assert_eq!(t.eval(Vec2::new(0.6, 0.1)), Vec3::ZERO); // u' 1.2: low again
+    }
+}
