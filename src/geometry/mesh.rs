@@ -156,8 +156,31 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
     let has_normals = vertices
         .first()
         .is_some_and(|v| v.contains_key("nx") && v.contains_key("ny") && v.contains_key("nz"));
+    // Texture coordinates under any of the names Mitsuba's PLY reader accepts.
+    let uv_names = [
+        ("u", "v"),
+        ("s", "t"),
+        ("texture_u", "texture_v"),
+        ("texture_s", "texture_t"),
+    ]
+    .into_iter()
+    .find(|(a, b)| {
+        vertices
+            .first()
+            .is_some_and(|v| v.contains_key(*a) && v.contains_key(*b))
+    });
+    let mut uvs = Vec::new();
     for (i, v) in vertices.iter().enumerate() {
         let get = |k: &str| v.get(k).and_then(scalar);
+        if let Some((a, b)) = uv_names {
+            let (Some(u), Some(w)) = (get(a), get(b)) else {
+                return Err(mesh_error(
+                    path,
+                    format!("PLY vertex {i} lacks numeric {a}, {b}"),
+                ));
+            };
+            uvs.push(Vec2::new(u as f32, w as f32));
+        }
         let (Some(x), Some(y), Some(z)) = (get("x"), get("y"), get("z")) else {
             return Err(mesh_error(
                 path,
@@ -201,7 +224,7 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
         positions,
         normals: has_normals.then_some(normals),
         triangles,
-        uvs: None,
+        uvs: uv_names.map(|_| uvs),
         warnings,
     })
 }
@@ -492,4 +515,32 @@ fn vertex_normals(positions: &[Vec3A], triangles: &[[u32; 3]]) -> Vec<Vec3A> {
         *n = n.normalize_or_zero();
     }
     normals
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// PLY texture coordinates are read under Mitsuba's names (here `s`, `t`), unflipped.
+    #[test]
+    fn ply_texture_coordinates() {
+        let dir = std::env::temp_dir().join(format!("mediareg_ply_uv_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("tri.ply");
+        std::fs::write(
+            &path,
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty float s\nproperty float t\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0 0.1 0.2\n1 0 0 0.9 0.2\n0 1 0 0.1 0.8\n3 0 1 2\n",
+        )
+        .unwrap();
+        let m = read_ply(&path).unwrap();
+        assert_eq!(
+            m.uvs,
+            Some(vec![
+                Vec2::new(0.1, 0.2),
+                Vec2::new(0.9, 0.2),
+                Vec2::new(0.1, 0.8)
+            ])
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
