@@ -18,6 +18,11 @@ const SPP: u32 = 64;
 /// give its power test the resolution of the others.
 const SPP_DIRECT: u32 = 256;
 
+/// The `direct` scene, at SPP_DIRECT.
+fn check_direct(params: &[(&str, &str)], seed: u64) -> Comparison {
+    check_against_reference("direct", "direct", params, CHUNKS, SPP_DIRECT, seed)
+}
+
 fn check(name: &str, params: &[(&str, &str)], seed: u64) -> Comparison {
     check_scene(name, name, params, seed)
 }
@@ -81,21 +86,14 @@ fn comparison_detects_mesh_reflectance_off_by_two_percent() {
 /// camera, and an environment.
 #[test]
 fn direct_matches_mitsuba() {
-    let c = check_against_reference("direct", "direct", &[], CHUNKS, SPP_DIRECT, 8);
+    let c = check_direct(&[], 8);
     assert!(c.passed, "{c}");
 }
 
 /// Power: the cube's reflectance 2% off must fail the `direct` comparison.
 #[test]
 fn direct_comparison_detects_reflectance_off_by_two_percent() {
-    let c = check_against_reference(
-        "direct",
-        "direct",
-        &[("reflectance", "0.714, 0.612, 0.51")],
-        CHUNKS,
-        SPP_DIRECT,
-        9,
-    );
+    let c = check_direct(&[("reflectance", "0.714, 0.612, 0.51")], 9);
     assert!(!c.passed, "a 2% reflectance change went undetected: {c}");
 }
 

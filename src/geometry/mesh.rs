@@ -1,7 +1,6 @@
 //! Triangle meshes: PLY (ply-rs) and OBJ (tobj) readers, Mitsuba's `cube`, vertex
 //! normals, ray–triangle intersection and uniform area sampling.
 
-use std::io::BufReader;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
@@ -52,12 +51,10 @@ fn guarded<T>(path: &Path, what: &str, f: impl FnOnce() -> Result<T>) -> Result<
 /// Element counts (and the format's version numbers) in the header must be numbers
 /// below 2³²: ply-rs panics on one that overflows u64, and no mesh this renderer can
 /// hold has more.
-fn check_ply_counts(path: &Path) -> Result<()> {
+fn check_ply_counts(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::BufRead;
-    let file = std::fs::File::open(path)
-        .map_err(|e| mesh_error(path, format!("cannot open PLY file: {e}")))?;
     let mut line = Vec::new();
-    let mut reader = BufReader::new(file);
+    let mut reader = bytes;
     for number in 1..=10_000 {
         line.clear();
         match reader.read_until(b'\n', &mut line) {
@@ -97,11 +94,12 @@ fn check_ply_counts(path: &Path) -> Result<()> {
 pub fn read_ply(path: &Path) -> Result<RawMesh> {
     use ply_rs::parser::Parser;
     use ply_rs::ply::{DefaultElement, Property};
-    let file = std::fs::File::open(path)
-        .map_err(|e| mesh_error(path, format!("cannot open PLY file: {e}")))?;
-    check_ply_counts(path)?;
+    // One read of the file serves the header check, the parser and the trailing-data check.
+    let bytes =
+        std::fs::read(path).map_err(|e| mesh_error(path, format!("cannot open PLY file: {e}")))?;
+    check_ply_counts(path, &bytes)?;
     let (payload, trailing) = guarded(path, "PLY", || {
-        let mut reader = BufReader::new(file);
+        let mut reader = bytes.as_slice();
         // Header and payload from one reader (read_ply would buffer past the payload).
         let parser = Parser::<DefaultElement>::new();
         let payload = parser
@@ -118,9 +116,7 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
             })?;
         // Data past the declared elements: Mitsuba ignores it, and so does this reader,
         // but a header count that is too small is worth a word.
-        let mut rest = Vec::new();
-        let _ = std::io::Read::read_to_end(&mut std::io::Read::take(reader, 1 << 20), &mut rest);
-        Ok((payload, rest.iter().any(|b| !b.is_ascii_whitespace())))
+        Ok((payload, reader.iter().any(|b| !b.is_ascii_whitespace())))
     })?;
 
     let scalar = |p: &Property| -> Option<f64> {
