@@ -95,6 +95,21 @@ def referenced_files(scene_path, search, params):
     return out
 
 
+def set_variant(mi, variant=None):
+    """Sets and returns `variant`, by default llvm_ad_rgb if it works (it needs LLVM >= 16,
+    see README), else scalar_rgb."""
+    if variant is None:
+        variant = "scalar_rgb"
+        if "llvm_ad_rgb" in mi.variants():
+            try:
+                mi.set_variant("llvm_ad_rgb")
+                variant = "llvm_ad_rgb"
+            except Exception:
+                variant = "scalar_rgb"
+    mi.set_variant(variant)
+    return variant
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scene")
@@ -115,16 +130,7 @@ def main():
     import mitsuba as mi
     import numpy as np
 
-    variant = args.variant
-    if variant is None:
-        variant = "scalar_rgb"
-        if "llvm_ad_rgb" in mi.variants():
-            try:
-                mi.set_variant("llvm_ad_rgb")
-                variant = "llvm_ad_rgb"
-            except Exception:
-                variant = "scalar_rgb"
-    mi.set_variant(variant)
+    variant = set_variant(mi, args.variant)
 
     params = dict(d.split("=", 1) for d in args.defines)
     scene_dir = os.path.dirname(os.path.abspath(args.scene))

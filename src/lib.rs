@@ -11,6 +11,7 @@ pub mod image;
 pub mod integrator;
 pub mod medium;
 pub mod regularize;
+pub mod report;
 pub mod scene;
 pub mod xml;
 

@@ -11,9 +11,11 @@ use glam::Vec3;
 
 use mediareg::integrator::volpath::Gradient;
 use mediareg::integrator::Image;
-use mediareg::regularize::sequence::CameraPath;
+use mediareg::regularize::sequence::{image_centre_point, CameraPath};
 use mediareg::regularize::spatial::BilateralParams;
 use mediareg::regularize::{self, CBeta, Method, Reproject};
+use mediareg::report::mitsuba::MitsubaRunner;
+use mediareg::report::{self, Budget, TableOptions};
 use mediareg::scene::{IntegratorKind, Scene};
 use mediareg::{image, integrator, load_scene, xml, BuildOverrides};
 
@@ -48,6 +50,64 @@ struct SceneArgs {
     /// Random seed (overrides the sampler's seed).
     #[arg(long)]
     seed: Option<u64>,
+    /// Number of render threads (default: all cores).
+    #[arg(short = 't', long = "threads")]
+    threads: Option<usize>,
+    /// Do not write PNG previews.
+    #[arg(long)]
+    no_png: bool,
+}
+
+/// `mediareg table`'s arguments.
+#[derive(Args)]
+struct TableArgs {
+    /// Scene names: SCENE_DIR/NAME.xml, with REFERENCE_DIR/NAME.exr.
+    #[arg(long, value_delimiter = ',', default_value = "bunny,candle,lucy")]
+    scenes: Vec<String>,
+    /// Seconds per method (per frame for the regularized sequence).
+    #[arg(long, conflicts_with = "spp", default_value_t = 30.0)]
+    budget: f64,
+    /// Equal spp instead of equal time.
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Output folder.
+    #[arg(long, default_value = "out/table")]
+    out: PathBuf,
+    #[arg(long, default_value = "mitsuba_scenes")]
+    scene_dir: PathBuf,
+    #[arg(long, default_value = "reference")]
+    reference_dir: PathBuf,
+    /// Set a scene parameter in every scene: -D name=value (the references must have
+    /// been made with the same).
+    #[arg(short = 'D', value_name = "NAME=VALUE")]
+    define: Vec<String>,
+    /// Add a folder to the search path (default: .cache/meshes, where
+    /// scripts/fetch_meshes puts the meshes).
+    #[arg(short = 'a', value_name = "DIR")]
+    search: Vec<PathBuf>,
+    /// Frames of the regularized sequence (N of Eq. 10).
+    #[arg(long, default_value_t = 11)]
+    frames: usize,
+    /// w_a of Eq. 10.
+    #[arg(long, default_value_t = 0.1)]
+    wa: f64,
+    /// Degrees the camera orbits per frame of the sequence.
+    #[arg(long, default_value_t = 0.5)]
+    orbit: f32,
+    /// c_β of the paper's predictor.
+    #[arg(long = "c-beta", default_value_t = 0.5)]
+    c_beta: f32,
+    /// Source albedo factor (default: the paper's for the scene, else 0.95).
+    #[arg(long)]
+    factor: Option<f32>,
+    /// The Python that has Mitsuba 3 (default: .venv/bin/python if present, else python3).
+    #[arg(long)]
+    python: Option<PathBuf>,
+    /// Do not render with Mitsuba 3.
+    #[arg(long)]
+    no_mitsuba: bool,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
     /// Number of render threads (default: all cores).
     #[arg(short = 't', long = "threads")]
     threads: Option<usize>,
@@ -124,6 +184,11 @@ enum Command {
         #[arg(long, value_enum, default_value = "paper")]
         predict: PredictArg,
     },
+    /// The paper's Table 1 on this machine: for each scene, at equal time (or spp), the
+    /// regularized method (temporal and single-frame spatial), plain volpath and Mitsuba 3's
+    /// volpath, each image's MSE against the scene's Mitsuba 3 reference. Writes
+    /// OUT/table1.md, table1.csv, table1.json, run.json and every image.
+    Table(TableArgs),
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -183,19 +248,21 @@ fn main() -> ExitCode {
     }
 }
 
-/// Loads the scene and checks where the output goes; returns the scene and OUT.exr.
-fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
-    let mut params = Vec::new();
-    for d in &args.define {
-        let (k, v) = d
-            .split_once('=')
-            .ok_or_else(|| anyhow!("-D {d}: expected NAME=VALUE"))?;
-        params.push((k.trim().to_string(), v.to_string()));
-    }
-    if args.spp == Some(0) {
-        bail!("--spp must be at least 1");
-    }
-    if let Some(t) = args.threads {
+/// `-D name=value` arguments as pairs.
+fn parse_defines(defines: &[String]) -> Result<Vec<(String, String)>> {
+    defines
+        .iter()
+        .map(|d| {
+            let (k, v) = d
+                .split_once('=')
+                .ok_or_else(|| anyhow!("-D {d}: expected NAME=VALUE"))?;
+            Ok((k.trim().to_string(), v.to_string()))
+        })
+        .collect()
+}
+
+fn set_threads(threads: Option<usize>) -> Result<()> {
+    if let Some(t) = threads {
         if t == 0 {
             bail!("-t must be at least 1");
         }
@@ -204,6 +271,16 @@ fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
             .build_global()
             .context("cannot set up the thread pool")?;
     }
+    Ok(())
+}
+
+/// Loads the scene and checks where the output goes; returns the scene and OUT.exr.
+fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
+    let params = parse_defines(&args.define)?;
+    if args.spp == Some(0) {
+        bail!("--spp must be at least 1");
+    }
+    set_threads(args.threads)?;
     let opts = xml::LoadOptions {
         params,
         search_dirs: args.search.clone(),
@@ -363,7 +440,7 @@ fn run(cli: Cli) -> Result<()> {
                 (Some(degrees), _, _) => {
                     let target = match target {
                         Some(t) => parse_point(&t)?,
-                        None => centre_point(&scene_data)?,
+                        None => image_centre_point(&scene_data).ok_or_else(|| anyhow!("--orbit: the image centre sees no surface; give the orbit's centre with --target x,y,z"))?,
                     };
                     CameraPath::Orbit {
                         degrees_per_frame: degrees,
@@ -457,7 +534,76 @@ fn run(cli: Cli) -> Result<()> {
             println!("wrote {}", written.join(", "));
             Ok(())
         }
+        Command::Table(args) => run_table_command(args),
     }
+}
+
+fn run_table_command(args: TableArgs) -> Result<()> {
+    let TableArgs {
+        scenes,
+        budget,
+        spp,
+        out,
+        scene_dir,
+        reference_dir,
+        define,
+        search,
+        frames,
+        wa,
+        orbit,
+        c_beta,
+        factor,
+        python,
+        no_mitsuba,
+        seed,
+        threads,
+        no_png,
+    } = args;
+    set_threads(threads)?;
+    let search = if search.is_empty() {
+        vec![PathBuf::from(".cache/meshes")]
+    } else {
+        search
+    };
+    let mitsuba = (!no_mitsuba).then(|| {
+        let mut r = MitsubaRunner::default_in(Path::new("."));
+        if let Some(p) = python {
+            r.python = p;
+        }
+        r
+    });
+    let opts = TableOptions {
+        scenes,
+        scene_dir,
+        reference_dir,
+        search,
+        params: parse_defines(&define)?,
+        budget: match spp {
+            Some(n) => Budget::Spp(n),
+            None => Budget::Seconds(budget),
+        },
+        out,
+        frames,
+        w_a: wa,
+        orbit_degrees: orbit,
+        c_beta,
+        factor,
+        mitsuba,
+        seed,
+        write_png: !no_png,
+        verbose: true,
+    };
+    let run = report::run_table(&opts)?;
+    report::output::write_outputs(&opts, &run)?;
+    for n in &run.notes {
+        eprintln!("note: {n}");
+    }
+    println!(
+        "wrote {} rows to {}/table1.md, table1.csv, table1.json",
+        run.rows.len(),
+        opts.out.display()
+    );
+    Ok(())
 }
 
 fn fmt3(v: Vec3) -> String {
@@ -474,14 +620,4 @@ fn parse_point(s: &str) -> Result<Vec3> {
         [x, y, z] => Ok(Vec3::new(x, y, z)),
         _ => bail!("--target {s}: expected three numbers x,y,z"),
     }
-}
-
-/// The first visible point through the film's centre: the default orbit centre.
-fn centre_point(scene: &Scene) -> Result<Vec3> {
-    let centre = glam::Vec2::new(scene.film.width as f32, scene.film.height as f32) * 0.5;
-    let ray = scene.camera.sample_ray(centre);
-    scene
-        .intersect(ray.o, ray.d, ray.tmax)
-        .map(|h| Vec3::from(h.p))
-        .ok_or_else(|| anyhow!("--orbit: the image centre sees no surface; give the orbit's centre with --target x,y,z"))
 }

@@ -1,0 +1,12 @@
+//! Reports that reproduce the paper against Mitsuba 3 references: `table` (Table 1:
+//! equal-time MSE of the regularized method, plain volpath and Mitsuba 3's volpath),
+//! with `metrics` (MSE against a reference with its own variance) and `paper` (the
+//! paper's published numbers, side by side).
+
+pub mod metrics;
+pub mod mitsuba;
+pub mod output;
+pub mod paper;
+pub mod table;
+
+pub use table::{run_table, Budget, Method, Row, TableOptions};

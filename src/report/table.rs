@@ -1,0 +1,556 @@
+//! `mediareg table`: the paper's Table 1 on this machine. For each scene, at equal time
+//! (or equal spp), against a Mitsuba 3 reference:
+//!
+//! * `regularized`: the paper's method as `mediareg regularize` runs it: a camera
+//!   sequence (an orbit about the image centre's first visible point) at α_s = factor·α_t,
+//!   the gradient blended over N frames (Eq. 10, exact reprojection), Eq. 11–12 with
+//!   c_β = 0.5. Its cost is that of one frame of the sequence (the paper's accounting):
+//!   the target frame's render plus reprojection, blending and prediction;
+//! * `regularized_spatial`: one frame, the gradient filtered spatially instead;
+//! * `volpath`: plain volpath at α_t;
+//! * `mitsuba_volpath`: Mitsuba 3's volpath on the same XML (`scripts/mitsuba_render.py`),
+//!   when the `mitsuba` package is importable; its time excludes kernel compilation.
+//!
+//! Equal time: each method's seconds per spp is measured first (renders of 1, 2, 4, …
+//! spp until one takes a while), and its spp is the budget over that. Each row records
+//! the seconds its render really took.
+//!
+//! The MSE is against the reference, raw and with the reference's own variance
+//! subtracted (`metrics`). The reference must have been made from the very files and
+//! `-D` parameters of the run: their sha256 and parameters are checked against its JSON.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{anyhow, bail, Context, Result};
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use super::metrics::mse_against;
+use super::mitsuba::{MitsubaRunner, Unavailable};
+use super::paper::table1_row;
+use crate::integrator::volpath::Gradient;
+use crate::integrator::{render_with, Image, RenderOptions};
+use crate::regularize::sequence::{image_centre_point, CameraPath};
+use crate::regularize::spatial::BilateralParams;
+use crate::regularize::{self, CBeta, Reproject};
+use crate::scene::{build_scene, IntegratorKind, Scene};
+use crate::{image, xml, BuildOverrides};
+
+/// How much each method may spend.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// Equal time: seconds per method (per frame for the regularized sequence).
+    Seconds(f64),
+    /// Equal samples per pixel (per frame for the regularized sequence).
+    Spp(u32),
+}
+
+#[derive(Clone, Debug)]
+pub struct TableOptions {
+    /// Scene names: `SCENE_DIR/NAME.xml`, reference `REFERENCE_DIR/NAME.exr`.
+    pub scenes: Vec<String>,
+    pub scene_dir: PathBuf,
+    pub reference_dir: PathBuf,
+    pub search: Vec<PathBuf>,
+    /// `-D` parameters; the reference must have been made with the same.
+    pub params: Vec<(String, String)>,
+    pub budget: Budget,
+    pub out: PathBuf,
+    /// N of Eq. 10 (the paper: 11) and w_a (0.1).
+    pub frames: usize,
+    pub w_a: f64,
+    /// The orbit step between frames of the regularized sequence.
+    pub orbit_degrees: f32,
+    pub c_beta: f32,
+    /// α_s = factor · α_t; default: the paper's factor for the scene, else 0.95.
+    pub factor: Option<f32>,
+    /// `None`: no Mitsuba 3 rows.
+    pub mitsuba: Option<MitsubaRunner>,
+    pub seed: u64,
+    pub write_png: bool,
+    /// One line per step on stderr.
+    pub verbose: bool,
+}
+
+#[derive(Serialize, Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    Regularized,
+    RegularizedSpatial,
+    Volpath,
+    MitsubaVolpath,
+}
+
+impl Method {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Method::Regularized => "regularized",
+            Method::RegularizedSpatial => "regularized_spatial",
+            Method::Volpath => "volpath",
+            Method::MitsubaVolpath => "mitsuba_volpath",
+        }
+    }
+}
+
+/// One row of `table1.json`.
+#[derive(Serialize, Deserialize, Clone, Debug)]
+pub struct Row {
+    pub scene: String,
+    pub method: Method,
+    /// Samples per pixel (per frame for `regularized`).
+    pub spp: u32,
+    /// The cost counted (one frame for `regularized`).
+    pub seconds: f64,
+    pub mse: f64,
+    pub mse_corrected: f64,
+    /// The image, relative to the JSON file.
+    pub image: String,
+    /// The reference, relative to the JSON file.
+    pub reference: String,
+    /// `regularized`: frames rendered, and the seconds of the whole sequence.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sequence_frames: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sequence_seconds: Option<f64>,
+}
+
+/// What a reference's JSON records (written by `scripts/mitsuba_reference.py`).
+#[derive(Deserialize, Clone, Debug)]
+pub struct ReferenceMeta {
+    pub mitsuba_version: String,
+    pub variant: String,
+    pub spp: u32,
+    pub chunks: u32,
+    pub seconds: f64,
+    #[serde(default)]
+    pub params: BTreeMap<String, String>,
+    pub width: usize,
+    pub height: usize,
+    pub sha256: BTreeMap<String, String>,
+}
+
+pub struct Reference {
+    pub path: PathBuf,
+    pub mean: Image,
+    pub var: Image,
+    pub meta: ReferenceMeta,
+}
+
+/// Everything a run produced.
+pub struct TableRun {
+    pub rows: Vec<Row>,
+    /// Per scene: the reference's spp, and the mean of its variance.
+    pub references: Vec<(String, ReferenceMeta, f64)>,
+    /// Things the reader must know (a method skipped, and why).
+    pub notes: Vec<String>,
+}
+
+fn sha256_file(path: &Path) -> Result<String> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(format!("{:x}", Sha256::digest(&bytes)))
+}
+
+fn remake_hint(name: &str, xml: &Path, params: &[(String, String)], dir: &Path) -> String {
+    let defines: String = params.iter().map(|(k, v)| format!(" -D {k}={v}")).collect();
+    format!(
+        "make it with: .venv/bin/python scripts/mitsuba_reference.py {} --spp 4096 --chunks 16 -a .cache/meshes{defines} --out {} --name {name}",
+        xml.display(),
+        dir.display()
+    )
+}
+
+impl Reference {
+    /// Loads `dir/NAME.exr`, `NAME_var.exr` and `NAME.json`, and checks that the
+    /// reference was made from these files (sha256 of the scene, its includes and
+    /// assets) and these `-D` parameters.
+    pub fn load(
+        dir: &Path,
+        name: &str,
+        xml_path: &Path,
+        load: &xml::LoadOptions,
+    ) -> Result<Reference> {
+        let hint = || remake_hint(name, xml_path, &load.params, dir);
+        let json_path = dir.join(format!("{name}.json"));
+        let text = std::fs::read_to_string(&json_path).map_err(|e| {
+            anyhow!(
+                "no Mitsuba 3 reference for {name}: {}: {e}; {}",
+                json_path.display(),
+                hint()
+            )
+        })?;
+        let meta: ReferenceMeta = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not a reference description", json_path.display()))?;
+        let given: BTreeMap<String, String> = load.params.iter().cloned().collect();
+        if given != meta.params {
+            bail!(
+                "{} was made with -D {:?}, this run has -D {:?}: MSEs would compare different scenes; {}",
+                json_path.display(),
+                meta.params,
+                given,
+                hint()
+            );
+        }
+        let desc = xml::load_file(xml_path, load).map_err(|e| anyhow!("{e}"))?;
+        let mut seen = Vec::new();
+        for f in desc.referenced_files() {
+            let base = f
+                .file_name()
+                .map(|b| b.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            match meta.sha256.get(&base) {
+                Some(want) if *want == sha256_file(&f)? => seen.push(base),
+                Some(_) => bail!(
+                    "{} changed since {} was made: the reference is stale; {}",
+                    f.display(),
+                    json_path.display(),
+                    hint()
+                ),
+                None => bail!(
+                    "{} does not record {base}, which the scene reads: the reference is stale; {}",
+                    json_path.display(),
+                    hint()
+                ),
+            }
+        }
+        if let Some(k) = meta.sha256.keys().find(|k| !seen.contains(k)) {
+            bail!(
+                "{} records {k}, which the scene no longer reads: the reference is stale; {}",
+                json_path.display(),
+                hint()
+            );
+        }
+        let path = dir.join(format!("{name}.exr"));
+        let mean = image::read_exr(&path)?;
+        let var = image::read_exr(&dir.join(format!("{name}_var.exr")))?;
+        if (mean.width, mean.height) != (meta.width, meta.height)
+            || (var.width, var.height) != (meta.width, meta.height)
+        {
+            bail!(
+                "{}: its images are not {}x{} as its JSON says",
+                dir.display(),
+                meta.width,
+                meta.height
+            );
+        }
+        Ok(Reference {
+            path,
+            mean,
+            var,
+            meta,
+        })
+    }
+}
+
+/// Seconds per spp of `scene` with `gradient`: renders at 1, 2, 4, … spp until one takes
+/// at least `min_seconds` (fixed costs per render are then a small part).
+fn seconds_per_spp(scene: &mut Scene, gradient: Gradient, min_seconds: f64, seed: u64) -> f64 {
+    let (spp0, seed0) = (scene.spp, scene.seed);
+    scene.seed = seed;
+    let mut spp = 1u32;
+    let per_spp = loop {
+        scene.spp = spp;
+        let r = render_with(
+            scene,
+            &RenderOptions {
+                gradient,
+                ..Default::default()
+            },
+        );
+        if r.stats.seconds >= min_seconds || spp >= 1 << 16 {
+            break r.stats.seconds / spp as f64;
+        }
+        spp *= 2;
+    };
+    scene.spp = spp0;
+    scene.seed = seed0;
+    per_spp
+}
+
+fn spp_for(budget: f64, seconds_per_spp: f64) -> u32 {
+    (budget / seconds_per_spp.max(1e-9)).floor().clamp(1.0, 1e7) as u32
+}
+
+/// `path` relative to the folder `base` (both made absolute first).
+fn relative_to(path: &Path, base: &Path) -> String {
+    let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    pathdiff::diff_paths(abs(path), abs(base))
+        .unwrap_or_else(|| path.to_path_buf())
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// Runs the table; writes the images into `opts.out` and returns the rows (the caller
+/// writes the table files with `write_outputs`).
+pub fn run_table(opts: &TableOptions) -> Result<TableRun> {
+    if opts.scenes.is_empty() {
+        bail!("--scenes: no scene given");
+    }
+    match opts.budget {
+        Budget::Seconds(b) if !(b.is_finite() && b > 0.0) => {
+            bail!("--budget {b}: must be a positive number of seconds")
+        }
+        Budget::Spp(0) => bail!("--spp must be at least 1"),
+        _ => {}
+    }
+    std::fs::create_dir_all(&opts.out)
+        .with_context(|| format!("cannot create {}", opts.out.display()))?;
+    let mut run = TableRun {
+        rows: Vec::new(),
+        references: Vec::new(),
+        notes: Vec::new(),
+    };
+    for name in &opts.scenes {
+        run_scene(name, opts, &mut run)?;
+    }
+    Ok(run)
+}
+
+fn run_scene(name: &str, opts: &TableOptions, run: &mut TableRun) -> Result<()> {
+    let log = |msg: String| {
+        if opts.verbose {
+            eprintln!("[{name}] {msg}");
+        }
+    };
+    let xml_path = opts.scene_dir.join(format!("{name}.xml"));
+    if !xml_path.is_file() {
+        bail!(
+            "scene {name}: {} does not exist (--scenes names files in {})",
+            xml_path.display(),
+            opts.scene_dir.display()
+        );
+    }
+    let load = xml::LoadOptions {
+        params: opts.params.clone(),
+        search_dirs: opts.search.clone(),
+    };
+    let reference = Reference::load(&opts.reference_dir, name, &xml_path, &load)?;
+    let desc = xml::load_file(&xml_path, &load).map_err(|e| anyhow!("{e}"))?;
+    let mut scene = build_scene(&desc, &BuildOverrides::default()).map_err(|e| anyhow!("{e}"))?;
+    if scene.integrator.kind != IntegratorKind::Volpath {
+        bail!("{}: the table needs a volpath scene", xml_path.display());
+    }
+    let (w, h) = scene.film.crop_size;
+    if (w, h) != (reference.meta.width, reference.meta.height) {
+        bail!(
+            "{}: renders {w}x{h}, its reference is {}x{}",
+            xml_path.display(),
+            reference.meta.width,
+            reference.meta.height
+        );
+    }
+    let medium = scene
+        .medium_index(None)
+        .map_err(|e| anyhow!("{name}: {e}"))?;
+    let factor = opts
+        .factor
+        .or(table1_row(name).map(|r| r.factor))
+        .unwrap_or(0.95);
+    let ref_rel = relative_to(&reference.path, &opts.out);
+    let ref_var_mean = super::metrics::mean(&reference.var);
+    run.references
+        .push((name.to_string(), reference.meta.clone(), ref_var_mean));
+    log(format!(
+        "reference: Mitsuba {} {}, {} spp; mean variance {:.3e}",
+        reference.meta.mitsuba_version, reference.meta.variant, reference.meta.spp, ref_var_mean
+    ));
+    if opts.write_png {
+        image::write_png(
+            &opts.out.join(format!("{name}_reference.png")),
+            &reference.mean,
+        )?;
+    }
+
+    let seed = opts.seed;
+    let calibrate = |scene: &mut Scene, gradient: Gradient| -> Option<f64> {
+        match opts.budget {
+            Budget::Seconds(b) => Some(seconds_per_spp(
+                scene,
+                gradient,
+                (b / 10.0).min(1.0),
+                seed.wrapping_add(1_000_000),
+            )),
+            Budget::Spp(_) => None,
+        }
+    };
+    let mut push = |method: Method,
+                    img: &Image,
+                    spp: u32,
+                    seconds: f64,
+                    sequence: Option<(usize, f64)>|
+     -> Result<()> {
+        let file = opts.out.join(format!("{name}_{}.exr", method.as_str()));
+        image::write_exr(&file, img)?;
+        if opts.write_png {
+            image::write_png(&file.with_extension("png"), img)?;
+        }
+        let (mse, mse_corrected) = mse_against(img, &reference.mean, &reference.var);
+        log(format!(
+            "{}: {spp} spp, {seconds:.2} s, MSE {mse:.4e} (corrected {mse_corrected:.4e})",
+            method.as_str()
+        ));
+        run.rows.push(Row {
+            scene: name.to_string(),
+            method,
+            spp,
+            seconds,
+            mse,
+            mse_corrected,
+            image: relative_to(&file, &opts.out),
+            reference: ref_rel.clone(),
+            sequence_frames: sequence.map(|s| s.0),
+            sequence_seconds: sequence.map(|s| s.1),
+        });
+        Ok(())
+    };
+
+    // Plain volpath at the target albedo.
+    let spp = match calibrate(&mut scene, Gradient::None) {
+        Some(per_spp) => spp_for(budget_seconds(opts.budget), per_spp),
+        None => budget_spp(opts.budget),
+    };
+    scene.spp = spp;
+    scene.seed = seed;
+    let r = render_with(&scene, &RenderOptions::default());
+    push(Method::Volpath, &r.image, spp, r.stats.seconds, None)?;
+
+    // The regularized method: temporal (the paper), then single-frame spatial.
+    let target = image_centre_point(&scene);
+    if target.is_none() {
+        run.notes.push(format!(
+            "{name}: the image centre sees no surface, so the regularized sequence keeps the camera still (frames differ only in noise)"
+        ));
+    }
+    let temporal = regularize::Options {
+        medium,
+        factor,
+        frames: opts.frames,
+        w_a: opts.w_a,
+        path: match target {
+            Some(t) => CameraPath::Orbit {
+                degrees_per_frame: opts.orbit_degrees,
+                target: t,
+            },
+            None => CameraPath::Static,
+        },
+        reproject: Reproject::Exact,
+        spatial: None,
+        method: regularize::Method::Paper(CBeta::Fixed(opts.c_beta)),
+        show_progress: false,
+    };
+    let spatial = regularize::Options {
+        frames: 1,
+        path: CameraPath::Static,
+        spatial: Some(BilateralParams::default()),
+        ..temporal.clone()
+    };
+    // Its frames render at the source albedo (shorter paths): calibrate there.
+    let target_albedo = scene.media[medium as usize].albedo;
+    scene.media[medium as usize].albedo = target_albedo * factor;
+    let per_spp_gradient = calibrate(&mut scene, Gradient::Albedo(medium));
+    scene.media[medium as usize].albedo = target_albedo;
+    for (method, ropts, seed_offset) in [
+        (Method::Regularized, &temporal, 100u64),
+        (Method::RegularizedSpatial, &spatial, 200u64),
+    ] {
+        let spp = match per_spp_gradient {
+            Some(per_spp) => {
+                // The denoising and prediction cost comes out of the frame's budget:
+                // measured on a 1-spp run of the same pipeline.
+                scene.spp = 1;
+                scene.seed = seed.wrapping_add(2_000_000);
+                let probe =
+                    regularize::regularize(&mut scene, ropts).map_err(|e| anyhow!("{e}"))?;
+                let left = budget_seconds(opts.budget) - probe.timings.denoise_and_predict;
+                spp_for(left, per_spp)
+            }
+            None => budget_spp(opts.budget),
+        };
+        scene.spp = spp;
+        scene.seed = seed.wrapping_add(seed_offset);
+        let started = Instant::now();
+        let r = regularize::regularize(&mut scene, ropts).map_err(|e| anyhow!("{e}"))?;
+        let sequence_seconds = started.elapsed().as_secs_f64();
+        if r.fallbacks > 0 {
+            run.notes.push(format!(
+                "{name} {}: {} channel values could not be predicted and keep the source radiance",
+                method.as_str(),
+                r.fallbacks
+            ));
+        }
+        let seconds = r.timings.target_frame + r.timings.denoise_and_predict;
+        let sequence =
+            (method == Method::Regularized).then_some((r.frames_rendered, sequence_seconds));
+        push(method, &r.predicted, spp, seconds, sequence)?;
+    }
+
+    // Mitsuba 3 on the same file.
+    match &opts.mitsuba {
+        None => run
+            .notes
+            .push(format!("{name}: Mitsuba 3 not run (--no-mitsuba)")),
+        Some(runner) => {
+            let file = opts.out.join(format!("{name}_mitsuba_volpath.exr"));
+            let (spp, budget) = match opts.budget {
+                Budget::Seconds(b) => (None, Some(b)),
+                Budget::Spp(n) => (Some(n), None),
+            };
+            log("mitsuba_volpath: rendering".into());
+            match runner.render(
+                &xml_path,
+                &file,
+                &opts.params,
+                &opts.search,
+                spp,
+                budget,
+                seed.wrapping_add(300),
+            ) {
+                Ok(m) => {
+                    let img = image::read_exr(&file)?;
+                    if opts.write_png {
+                        image::write_png(&file.with_extension("png"), &img)?;
+                    }
+                    let (mse, mse_corrected) = mse_against(&img, &reference.mean, &reference.var);
+                    log(format!(
+                        "mitsuba_volpath ({}): {} spp, {:.2} s, MSE {mse:.4e} (corrected {mse_corrected:.4e})",
+                        m.variant, m.spp, m.seconds
+                    ));
+                    run.rows.push(Row {
+                        scene: name.to_string(),
+                        method: Method::MitsubaVolpath,
+                        spp: m.spp,
+                        seconds: m.seconds,
+                        mse,
+                        mse_corrected,
+                        image: relative_to(&file, &opts.out),
+                        reference: ref_rel.clone(),
+                        sequence_frames: None,
+                        sequence_seconds: None,
+                    });
+                }
+                Err(Unavailable::NotInstalled(why)) => run.notes.push(format!(
+                    "{name}: Mitsuba 3 not run: {why} (install it: python3 -m venv .venv && .venv/bin/pip install mitsuba numpy)"
+                )),
+                Err(Unavailable::Failed(e)) => {
+                    run.notes.push(format!("{name}: Mitsuba 3 failed: {e:#}"))
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn budget_seconds(b: Budget) -> f64 {
+    match b {
+        Budget::Seconds(s) => s,
+        Budget::Spp(_) => unreachable!("only called with a time budget"),
+    }
+}
+
+fn budget_spp(b: Budget) -> u32 {
+    match b {
+        Budget::Spp(n) => n,
+        Budget::Seconds(_) => unreachable!("only called with an spp budget"),
+    }
+}

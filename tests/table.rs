@@ -1,0 +1,154 @@
+//! `mediareg table` at a reduced size: the cube of the paper's figures at 32×32 against a
+//! committed Mitsuba 3 reference (reference/table_small/cube.*, made with -D res=32), the
+//! same pipeline as the full-size run in reports/. Checks that the files say what the
+//! images are: every MSE recomputed from the EXRs the JSON names equals the JSON's.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use mediareg::report::{Method, Row};
+
+fn table(out: &Path, extra: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .current_dir(common::root())
+        .args([
+            "table", "--scenes", "cube", "-D", "res=32", "--budget", "0.4",
+        ])
+        .args(["--reference-dir", "reference/table_small", "--frames", "5"])
+        .args(["-t", "2", "--out"])
+        .arg(out)
+        .args(extra)
+        .output()
+        .expect("mediareg runs")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("mediareg_table_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn table_files_agree_with_the_images_they_name() {
+    let out = temp_dir("files");
+    // A Python that does not exist: the Mitsuba row is skipped with a note, not an error.
+    let o = table(&out, &["--python", "/nonexistent/python3"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "table failed: {stderr}");
+    assert!(
+        stderr.contains("Mitsuba 3 not run"),
+        "the skipped Mitsuba row must be noted: {stderr}"
+    );
+
+    let rows: Vec<Row> =
+        serde_json::from_str(&std::fs::read_to_string(out.join("table1.json")).unwrap())
+            .expect("table1.json is a list of rows");
+    let methods: Vec<Method> = rows.iter().map(|r| r.method).collect();
+    assert_eq!(
+        methods,
+        [
+            Method::Volpath,
+            Method::Regularized,
+            Method::RegularizedSpatial
+        ]
+    );
+    for r in &rows {
+        assert_eq!(r.scene, "cube");
+        assert!(r.spp >= 1 && r.seconds > 0.0 && r.seconds.is_finite());
+        let img = mediareg::image::read_exr(&out.join(&r.image)).expect("the row's image");
+        let reference = out.join(&r.reference);
+        let mean = mediareg::image::read_exr(&reference).expect("the row's reference");
+        let var_path = reference.with_file_name("cube_var.exr");
+        let var = mediareg::image::read_exr(&var_path).unwrap();
+        assert!(img
+            .pixels
+            .iter()
+            .all(|p| p.iter().all(|c| c.is_finite() && *c >= 0.0)));
+        // Recompute both MSEs from the files, in f64.
+        let n = (img.pixels.len() * 3) as f64;
+        let mut raw = 0.0;
+        let mut var_sum = 0.0;
+        for i in 0..img.pixels.len() {
+            for c in 0..3 {
+                raw += (img.pixels[i][c] as f64 - mean.pixels[i][c] as f64).powi(2);
+                var_sum += var.pixels[i][c] as f64;
+            }
+        }
+        raw /= n;
+        let corrected = raw - var_sum / n;
+        assert!(
+            (raw - r.mse).abs() <= 1e-9 * raw,
+            "{:?}: JSON MSE {} vs {raw}",
+            r.method,
+            r.mse
+        );
+        assert!((corrected - r.mse_corrected).abs() <= 1e-9 * raw);
+        assert!(raw > 0.0, "a Monte Carlo image equal to its reference?");
+    }
+    let seq = &rows[1];
+    assert_eq!(seq.sequence_frames, Some(5));
+    assert!(seq.sequence_seconds.unwrap() >= seq.seconds);
+
+    let csv = std::fs::read_to_string(out.join("table1.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(
+        lines[0],
+        "scene,method,spp,seconds,mse,mse_corrected,image,reference"
+    );
+    assert_eq!(lines.len(), 1 + rows.len());
+    for (line, r) in lines[1..].iter().zip(&rows) {
+        assert!(line.starts_with(&format!("cube,{},{},", r.method.as_str(), r.spp)));
+    }
+    let md = std::fs::read_to_string(out.join("table1.md")).unwrap();
+    for m in [
+        "| cube | volpath |",
+        "| cube | regularized |",
+        "## Against the paper",
+    ] {
+        assert!(md.contains(m), "table1.md lacks {m}");
+    }
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(run["references"][0]["spp"], 8192);
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// Runs a table that must be refused; returns its stderr.
+fn refused(args: &[&str]) -> String {
+    let out = temp_dir("refused");
+    let o = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .current_dir(common::root())
+        .arg("table")
+        .args(args)
+        .args([
+            "--budget",
+            "0.2",
+            "--reference-dir",
+            "reference/table_small",
+        ])
+        .args(["--no-mitsuba", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&out);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    stderr
+}
+
+#[test]
+fn a_reference_made_for_other_parameters_is_refused() {
+    let stderr = refused(&["--scenes", "cube", "-D", "res=16"]);
+    assert!(
+        stderr.contains("was made with -D") && stderr.contains("mitsuba_reference.py"),
+        "{stderr}"
+    );
+    let stderr = refused(&["--scenes", "bunny"]);
+    assert!(
+        stderr.contains("no Mitsuba 3 reference for bunny"),
+        "{stderr}"
+    );
+}
