@@ -5,9 +5,10 @@ many spp as fit in a time budget. Prints one JSON line on stdout:
 where S is the time of the render itself (scene loading and the warm-up render that
 compiles Mitsuba's kernels are not counted, as mediareg's own timings count rendering).
 
-With --budget, a warm-up render at --calibrate-spp measures seconds per spp (the second
-of two renders, so that JIT compilation is not counted), and the final spp is
-budget / (seconds per spp). Large renders run in passes of at most 2^24 samples (each
+With --budget, warm-up renders measure seconds per spp (at --calibrate-spp, then 4x
+more until a render takes at least min(1 s, budget / 4); each size twice, the second
+timed, so that JIT compilation is not counted), and the final spp is budget / (seconds
+per spp). The final spp is rendered once untimed (compiling its kernels) and then timed. Large renders run in passes of at most 2^24 samples (each
 its own seed) so the wavefront fits in memory; the image is their spp-weighted mean.
 
 Usage:
@@ -67,12 +68,20 @@ def main():
 
     spp = args.spp
     if spp is None:
+        # Seconds per spp from a render long enough that launch overheads do not count:
+        # each size is rendered twice and the second timed (the first compiles).
         c = args.calibrate_spp
-        render(c, args.seed + 1_000_000)  # compiles the kernels
-        t = time.time()
-        render(c, args.seed + 2_000_000)
-        per_spp = (time.time() - t) / c
-        spp = max(1, int(args.budget / per_spp))
+        while True:
+            render(c, args.seed + 1_000_000)
+            t = time.time()
+            render(c, args.seed + 2_000_000)
+            elapsed = time.time() - t
+            if elapsed >= min(1.0, args.budget / 4) or c >= 1 << 20:
+                break
+            c *= 4
+        spp = max(1, int(args.budget * c / elapsed))
+    # The kernels of this spp's passes compile here, outside the timed render.
+    render(spp, args.seed + 3_000_000)
     t = time.time()
     img = render(spp, args.seed)
     seconds = time.time() - t

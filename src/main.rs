@@ -189,6 +189,40 @@ enum Command {
     /// volpath, each image's MSE against the scene's Mitsuba 3 reference. Writes
     /// OUT/table1.md, table1.csv, table1.json, run.json and every image.
     Table(TableArgs),
+    /// An HTML page (reports/index.html) from a table run and the figures: per scene the
+    /// reference, each method's image and error map, the table, the plots.
+    Report {
+        #[arg(long, default_value = "reports/table")]
+        table: PathBuf,
+        #[arg(long, default_value = "reports/figures")]
+        figures: PathBuf,
+        #[arg(short = 'o', long = "output", default_value = "reports/index.html")]
+        output: PathBuf,
+    },
+    /// The paper's figures (Fig. 6, 7, 9, 11, 12 and speed against error) as PNG plots
+    /// with their numbers (figN.json), from reduced-size sweeps against the references
+    /// in reference/figures/ (Fig. 7: the full-size cube).
+    Figures {
+        #[command(flatten)]
+        table: TableArgs,
+        /// Make only these (fig7, fig11, fig12, fig6, fig9, speed).
+        #[arg(long, value_delimiter = ',')]
+        only: Vec<String>,
+        #[arg(long, default_value = "reference/figures")]
+        figure_reference_dir: PathBuf,
+        /// Resolution of the sweeps.
+        #[arg(long, default_value_t = 128)]
+        res: u32,
+        /// Seconds per method of the sweeps over time (Fig. 11, 12, speed).
+        #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8")]
+        budgets: Vec<f64>,
+        /// Seconds per method of the sweeps over a parameter (Fig. 6, 9).
+        #[arg(long, default_value_t = 2.0)]
+        sweep_budget: f64,
+        /// Samples per pixel per frame of Fig. 7.
+        #[arg(long, default_value_t = 64)]
+        fig7_spp: u32,
+    },
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -534,11 +568,61 @@ fn run(cli: Cli) -> Result<()> {
             println!("wrote {}", written.join(", "));
             Ok(())
         }
-        Command::Table(args) => run_table_command(args),
+        Command::Table(args) => {
+            let opts = table_options(args)?;
+            let run = report::run_table(&opts)?;
+            report::output::write_outputs(&opts, &run)?;
+            for n in &run.notes {
+                eprintln!("note: {n}");
+            }
+            println!(
+                "wrote {} rows to {}/table1.md, table1.csv, table1.json",
+                run.rows.len(),
+                opts.out.display()
+            );
+            Ok(())
+        }
+        Command::Report {
+            table,
+            figures,
+            output,
+        } => {
+            let page = report::html::write_report(&output, &table, &figures)?;
+            println!("wrote {}", page.display());
+            Ok(())
+        }
+        Command::Figures {
+            table,
+            only,
+            figure_reference_dir,
+            res,
+            budgets,
+            sweep_budget,
+            fig7_spp,
+        } => {
+            let mut base = table_options(table)?;
+            if base.out == Path::new("out/table") {
+                base.out = PathBuf::from("out/figures");
+            }
+            let opts = report::figures::FigureOptions {
+                base,
+                figure_reference_dir,
+                res,
+                budgets,
+                budget: sweep_budget,
+                fig7_spp,
+                only,
+            };
+            let written = report::figures::make_figures(&opts)?;
+            let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
+            println!("wrote {}", names.join(", "));
+            Ok(())
+        }
     }
 }
 
-fn run_table_command(args: TableArgs) -> Result<()> {
+/// The table's options from its arguments (also the base of `figures`).
+fn table_options(args: TableArgs) -> Result<TableOptions> {
     let TableArgs {
         scenes,
         budget,
@@ -572,7 +656,7 @@ fn run_table_command(args: TableArgs) -> Result<()> {
         }
         r
     });
-    let opts = TableOptions {
+    Ok(TableOptions {
         scenes,
         scene_dir,
         reference_dir,
@@ -592,18 +676,7 @@ fn run_table_command(args: TableArgs) -> Result<()> {
         seed,
         write_png: !no_png,
         verbose: true,
-    };
-    let run = report::run_table(&opts)?;
-    report::output::write_outputs(&opts, &run)?;
-    for n in &run.notes {
-        eprintln!("note: {n}");
-    }
-    println!(
-        "wrote {} rows to {}/table1.md, table1.csv, table1.json",
-        run.rows.len(),
-        opts.out.display()
-    );
-    Ok(())
+    })
 }
 
 fn fmt3(v: Vec3) -> String {

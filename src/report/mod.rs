@@ -3,10 +3,13 @@
 //! with `metrics` (MSE against a reference with its own variance) and `paper` (the
 //! paper's published numbers, side by side).
 
+pub mod figures;
+pub mod html;
 pub mod metrics;
 pub mod mitsuba;
 pub mod output;
 pub mod paper;
+pub mod plot;
 pub mod table;
 
-pub use table::{run_table, Budget, Method, Row, TableOptions};
+pub use table::{run_scene, run_table, Budget, Method, Row, SceneJob, TableOptions, TableRun};

@@ -139,6 +139,7 @@ pub struct Reference {
 }
 
 /// Everything a run produced.
+#[derive(Default)]
 pub struct TableRun {
     pub rows: Vec<Row>,
     /// Per scene: the reference's spp, and the mean of its variance.
@@ -302,15 +303,38 @@ pub fn run_table(opts: &TableOptions) -> Result<TableRun> {
         notes: Vec::new(),
     };
     for name in &opts.scenes {
-        run_scene(name, opts, &mut run)?;
+        run_scene(&SceneJob::named(name), opts, &mut run)?;
     }
     Ok(run)
 }
 
-fn run_scene(name: &str, opts: &TableOptions, run: &mut TableRun) -> Result<()> {
+/// One scene of a run: `SCENE_DIR/scene.xml` against `REFERENCE_DIR/reference.exr`,
+/// its files named `tag_METHOD.exr`.
+#[derive(Clone, Debug)]
+pub struct SceneJob {
+    pub scene: String,
+    pub reference: String,
+    pub tag: String,
+}
+
+impl SceneJob {
+    /// The table's case: scene, reference and files share the name.
+    pub fn named(name: &str) -> SceneJob {
+        SceneJob {
+            scene: name.into(),
+            reference: name.into(),
+            tag: name.into(),
+        }
+    }
+}
+
+/// Renders one scene with every method and appends its rows to `run`.
+pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Result<()> {
+    let name = job.scene.as_str();
+    let tag = job.tag.as_str();
     let log = |msg: String| {
         if opts.verbose {
-            eprintln!("[{name}] {msg}");
+            eprintln!("[{tag}] {msg}");
         }
     };
     let xml_path = opts.scene_dir.join(format!("{name}.xml"));
@@ -325,7 +349,7 @@ fn run_scene(name: &str, opts: &TableOptions, run: &mut TableRun) -> Result<()> 
         params: opts.params.clone(),
         search_dirs: opts.search.clone(),
     };
-    let reference = Reference::load(&opts.reference_dir, name, &xml_path, &load)?;
+    let reference = Reference::load(&opts.reference_dir, &job.reference, &xml_path, &load)?;
     let desc = xml::load_file(&xml_path, &load).map_err(|e| anyhow!("{e}"))?;
     let mut scene = build_scene(&desc, &BuildOverrides::default()).map_err(|e| anyhow!("{e}"))?;
     if scene.integrator.kind != IntegratorKind::Volpath {
@@ -357,7 +381,7 @@ fn run_scene(name: &str, opts: &TableOptions, run: &mut TableRun) -> Result<()> 
     ));
     if opts.write_png {
         image::write_png(
-            &opts.out.join(format!("{name}_reference.png")),
+            &opts.out.join(format!("{tag}_reference.png")),
             &reference.mean,
         )?;
     }
@@ -380,7 +404,7 @@ fn run_scene(name: &str, opts: &TableOptions, run: &mut TableRun) -> Result<()> 
                     seconds: f64,
                     sequence: Option<(usize, f64)>|
      -> Result<()> {
-        let file = opts.out.join(format!("{name}_{}.exr", method.as_str()));
+        let file = opts.out.join(format!("{tag}_{}.exr", method.as_str()));
         image::write_exr(&file, img)?;
         if opts.write_png {
             image::write_png(&file.with_extension("png"), img)?;
@@ -491,7 +515,7 @@ fn run_scene(name: &str, opts: &TableOptions, run: &mut TableRun) -> Result<()> 
             .notes
             .push(format!("{name}: Mitsuba 3 not run (--no-mitsuba)")),
         Some(runner) => {
-            let file = opts.out.join(format!("{name}_mitsuba_volpath.exr"));
+            let file = opts.out.join(format!("{tag}_mitsuba_volpath.exr"));
             let (spp, budget) = match opts.budget {
                 Budget::Seconds(b) => (None, Some(b)),
                 Budget::Spp(n) => (Some(n), None),

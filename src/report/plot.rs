@@ -1,0 +1,221 @@
+//! Line plots as PNG (plotters, bitmap backend; the DejaVu Sans font is embedded, so no
+//! system font is needed).
+
+use std::ops::Range;
+use std::path::Path;
+use std::sync::Once;
+
+use anyhow::{anyhow, bail, Result};
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::prelude::*;
+
+/// One curve.
+#[derive(Clone, Debug)]
+pub struct Series {
+    pub name: String,
+    pub points: Vec<(f64, f64)>,
+    /// Drawn as a dashed line without markers (references, baselines).
+    pub dashed: bool,
+}
+
+impl Series {
+    pub fn new(name: &str, points: Vec<(f64, f64)>) -> Series {
+        Series {
+            name: name.into(),
+            points,
+            dashed: false,
+        }
+    }
+
+    pub fn dashed(name: &str, points: Vec<(f64, f64)>) -> Series {
+        Series {
+            dashed: true,
+            ..Series::new(name, points)
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Axes {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub log_x: bool,
+    pub log_y: bool,
+}
+
+static FONT: Once = Once::new();
+
+fn register_font() {
+    FONT.call_once(|| {
+        // The embedded font is valid; a failure would only lose the text.
+        let _ = plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            dejavu::sans::regular(),
+        );
+    });
+}
+
+/// The range of the values, widened a little; for a log axis only positive values count.
+fn range(values: impl Iterator<Item = f64>, log: bool) -> Result<Range<f64>> {
+    let v: Vec<f64> = values
+        .filter(|x| x.is_finite() && (!log || *x > 0.0))
+        .collect();
+    if v.is_empty() {
+        bail!("nothing to plot");
+    }
+    let (lo, hi) = v
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
+    Ok(if log {
+        let (lo, hi) = if hi / lo < 1.5 {
+            (lo / 1.25, hi * 1.25)
+        } else {
+            (lo, hi)
+        };
+        lo / 1.15..hi * 1.15
+    } else {
+        let pad = if hi > lo { 0.05 * (hi - lo) } else { 0.5 };
+        lo - pad..hi + pad
+    })
+}
+
+/// A tick label: plain for moderate values (trailing zeros dropped), else scientific.
+fn tick(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    if !(1e-2..1e4).contains(&v.abs()) {
+        return format!("{v:.1e}");
+    }
+    let s = format!("{v:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+/// Draws `series` into a PNG at `path` (900×600).
+pub fn line_plot(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
+    register_font();
+    let xs = || series.iter().flat_map(|s| s.points.iter().map(|p| p.0));
+    let ys = || series.iter().flat_map(|s| s.points.iter().map(|p| p.1));
+    let (xr, yr) = (range(xs(), axes.log_x)?, range(ys(), axes.log_y)?);
+    match (axes.log_x, axes.log_y) {
+        (false, false) => draw(path, axes, series, xr, yr),
+        (true, false) => draw(path, axes, series, xr.log_scale(), yr),
+        (false, true) => draw(path, axes, series, xr, yr.log_scale()),
+        (true, true) => draw(path, axes, series, xr.log_scale(), yr.log_scale()),
+    }
+}
+
+fn draw<X, Y>(path: &Path, axes: &Axes, series: &[Series], x: X, y: Y) -> Result<()>
+where
+    X: AsRangedCoord<Value = f64>,
+    Y: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+    Y::CoordDescType: ValueFormatter<f64>,
+{
+    let err = |e: &dyn std::fmt::Display| anyhow!("cannot draw {}: {e}", path.display());
+    let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(&axes.title, ("sans-serif", 22))
+        .margin(16)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x, y)
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc(&axes.x_label)
+        .y_desc(&axes.y_label)
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 17))
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
+        .draw()
+        .map_err(|e| err(&e))?;
+    for (i, s) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        let style = ShapeStyle {
+            color,
+            filled: false,
+            stroke_width: 2,
+        };
+        let points: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .copied()
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+            .collect();
+        let anno = if s.dashed {
+            chart
+                .draw_series(DashedLineSeries::new(points, 8, 5, style))
+                .map_err(|e| err(&e))?
+        } else {
+            // Markers only where points are few enough to tell apart.
+            let marker = if points.len() <= 40 { 3 } else { 0 };
+            chart
+                .draw_series(LineSeries::new(points, style).point_size(marker))
+                .map_err(|e| err(&e))?
+        };
+        anno.label(s.name.as_str()).legend(move |(x, y)| {
+            PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+        });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 15))
+        .draw()
+        .map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tick_labels_are_short() {
+        assert_eq!(tick(0.0), "0");
+        assert_eq!(tick(250.0), "250");
+        assert_eq!(tick(0.125), "0.125");
+        assert_eq!(tick(1.5e-4), "1.5e-4");
+    }
+
+    #[test]
+    fn a_plot_is_a_png_with_curves_and_text() {
+        let path = std::env::temp_dir().join(format!("mediareg_plot_{}.png", std::process::id()));
+        let axes = Axes {
+            title: "t".into(),
+            x_label: "x".into(),
+            y_label: "y".into(),
+            log_x: true,
+            log_y: true,
+        };
+        let series = [
+            Series::new("a", vec![(1.0, 1e-3), (2.0, 5e-4), (4.0, 2.5e-4)]),
+            Series::dashed("b", vec![(1.0, 2e-3), (4.0, 2e-3)]),
+        ];
+        line_plot(&path, &axes, &series).unwrap();
+        let decoder =
+            png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&path).unwrap()));
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), (900, 600));
+        // Not blank: white background plus several other colours (curves, text, grid).
+        let mut colours = std::collections::HashSet::new();
+        for px in buf[..info.buffer_size()].chunks(info.color_type.samples()) {
+            colours.insert(px.to_vec());
+        }
+        assert!(colours.len() > 20, "only {} colours", colours.len());
+        // Nothing to plot is an error, not an empty picture.
+        assert!(line_plot(&path, &axes, &[Series::new("c", vec![(0.0, -1.0)])]).is_err());
+        let _ = std::fs::remove_file(&path);
+    }
+}
