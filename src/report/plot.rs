@@ -6,7 +6,6 @@ use std::path::Path;
 use std::sync::Once;
 
 use anyhow::{anyhow, bail, Result};
-use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
 
 /// One curve.
@@ -46,6 +45,16 @@ pub struct Axes {
 
 static FONT: Once = Once::new();
 
+/// Distinct, readable on white (the matplotlib "tab10" order).
+const COLOURS: [RGBColor; 6] = [
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(0, 0, 0),
+];
+
 fn register_font() {
     FONT.call_once(|| {
         // The embedded font is valid; a failure would only lose the text.
@@ -57,11 +66,10 @@ fn register_font() {
     });
 }
 
-/// The range of the values, widened a little; for a log axis only positive values count.
-fn range(values: impl Iterator<Item = f64>, log: bool) -> Result<Range<f64>> {
-    let v: Vec<f64> = values
-        .filter(|x| x.is_finite() && (!log || *x > 0.0))
-        .collect();
+/// The range of the values, widened a little (in log10 units on a log axis, where only
+/// positive values count).
+fn range(values: impl Iterator<Item = f64>) -> Result<Range<f64>> {
+    let v: Vec<f64> = values.filter(|x| x.is_finite()).collect();
     if v.is_empty() {
         bail!("nothing to plot");
     }
@@ -70,17 +78,8 @@ fn range(values: impl Iterator<Item = f64>, log: bool) -> Result<Range<f64>> {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
             (a.min(x), b.max(x))
         });
-    Ok(if log {
-        let (lo, hi) = if hi / lo < 1.5 {
-            (lo / 1.25, hi * 1.25)
-        } else {
-            (lo, hi)
-        };
-        lo / 1.15..hi * 1.15
-    } else {
-        let pad = if hi > lo { 0.05 * (hi - lo) } else { 0.5 };
-        lo - pad..hi + pad
-    })
+    let pad = if hi > lo { 0.05 * (hi - lo) } else { 0.5 };
+    Ok(lo - pad..hi + pad)
 }
 
 /// A tick label: plain for moderate values (trailing zeros dropped), else scientific.
@@ -95,27 +94,35 @@ fn tick(v: f64) -> String {
     s.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
-/// Draws `series` into a PNG at `path` (900×600).
-pub fn line_plot(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
-    register_font();
-    let xs = || series.iter().flat_map(|s| s.points.iter().map(|p| p.0));
-    let ys = || series.iter().flat_map(|s| s.points.iter().map(|p| p.1));
-    let (xr, yr) = (range(xs(), axes.log_x)?, range(ys(), axes.log_y)?);
-    match (axes.log_x, axes.log_y) {
-        (false, false) => draw(path, axes, series, xr, yr),
-        (true, false) => draw(path, axes, series, xr.log_scale(), yr),
-        (false, true) => draw(path, axes, series, xr, yr.log_scale()),
-        (true, true) => draw(path, axes, series, xr.log_scale(), yr.log_scale()),
+/// A value as plotted: log10 of it on a log axis (plotters' own log axes label only
+/// whole decades, useless for a range within one), so ticks are placed evenly in
+/// log units and labelled with the value itself.
+fn to_axis(v: f64, log: bool) -> f64 {
+    match (log, v > 0.0) {
+        (false, _) => v,
+        (true, true) => v.log10(),
+        (true, false) => f64::NAN,
     }
 }
 
-fn draw<X, Y>(path: &Path, axes: &Axes, series: &[Series], x: X, y: Y) -> Result<()>
-where
-    X: AsRangedCoord<Value = f64>,
-    Y: AsRangedCoord<Value = f64>,
-    X::CoordDescType: ValueFormatter<f64>,
-    Y::CoordDescType: ValueFormatter<f64>,
-{
+/// Draws `series` into a PNG at `path` (900×600).
+pub fn line_plot(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
+    register_font();
+    let series: Vec<Series> = series
+        .iter()
+        .map(|s| Series {
+            points: s
+                .points
+                .iter()
+                .map(|&(x, y)| (to_axis(x, axes.log_x), to_axis(y, axes.log_y)))
+                .collect(),
+            ..s.clone()
+        })
+        .collect();
+    let xr = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)))?;
+    let yr = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)))?;
+    let label = |log: bool| move |v: &f64| tick(if log { 10f64.powf(*v) } else { *v });
+    let (x_label, y_label) = (label(axes.log_x), label(axes.log_y));
     let err = |e: &dyn std::fmt::Display| anyhow!("cannot draw {}: {e}", path.display());
     let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
@@ -124,20 +131,29 @@ where
         .margin(16)
         .x_label_area_size(50)
         .y_label_area_size(80)
-        .build_cartesian_2d(x, y)
+        .build_cartesian_2d(xr, yr)
         .map_err(|e| err(&e))?;
+    let log_note = |label: &str, log: bool| {
+        if log {
+            format!("{label} (log scale)")
+        } else {
+            label.to_string()
+        }
+    };
     chart
         .configure_mesh()
-        .x_desc(&axes.x_label)
-        .y_desc(&axes.y_label)
+        .x_labels(8)
+        .y_labels(8)
+        .x_desc(log_note(&axes.x_label, axes.log_x))
+        .y_desc(log_note(&axes.y_label, axes.log_y))
         .label_style(("sans-serif", 15))
         .axis_desc_style(("sans-serif", 17))
-        .x_label_formatter(&|v| tick(*v))
-        .y_label_formatter(&|v| tick(*v))
+        .x_label_formatter(&x_label)
+        .y_label_formatter(&y_label)
         .draw()
         .map_err(|e| err(&e))?;
     for (i, s) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
+        let color = COLOURS[i % COLOURS.len()].to_rgba();
         let style = ShapeStyle {
             color,
             filled: false,
