@@ -524,3 +524,21 @@ fn fig7(opts: &FigureOptions) -> Result<PathBuf> {
     write_json(&base.out.join("fig7.json"), &data)?;
     Ok(png)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sweep_references_are_named_by_scene_size_and_parameters() {
+        assert_eq!(reference_name("cube", 128), "cube_res128");
+        assert_eq!(
+            reference_name("cube_albedo0.5", 128),
+            "cube_res128_albedo0.5"
+        );
+        assert_eq!(
+            reference_name("bunny_sigma_t50", 64),
+            "bunny_res64_sigma_t50"
+        );
+    }
+}
