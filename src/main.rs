@@ -190,7 +190,8 @@ enum Command {
     /// OUT/table1.md, table1.csv, table1.json, run.json and every image.
     Table(TableArgs),
     /// An HTML page (reports/index.html) from a table run and the figures: per scene the
-    /// reference, each method's image and error map, the table, the plots.
+    /// reference, each method's image and error map, the table, the plots. Also remakes
+    /// the table's table1.md from its JSON files.
     Report {
         #[arg(long, default_value = "reports/table")]
         table: PathBuf,
@@ -587,6 +588,7 @@ fn run(cli: Cli) -> Result<()> {
             figures,
             output,
         } => {
+            report::output::rewrite_markdown(&table)?;
             let page = report::html::write_report(&output, &table, &figures)?;
             println!("wrote {}", page.display());
             Ok(())

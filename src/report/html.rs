@@ -12,8 +12,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::output::ratio_to_volpath;
-use super::paper::table1_row;
+use super::output::{paper_cells, ratio_cells, RunInfo};
 use super::table::{Method, Row};
 use crate::image;
 use crate::integrator::Image;
@@ -118,8 +117,8 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
             .with_context(|| format!("no table in {}: run mediareg table", table_dir.display()))?,
     )
     .context("table1.json")?;
-    let run: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(table_dir.join("run.json"))?)?;
+    let run: RunInfo = serde_json::from_str(&std::fs::read_to_string(table_dir.join("run.json"))?)
+        .context("run.json")?;
 
     let mut html = String::new();
     html.push_str(
@@ -135,18 +134,17 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
     writeln!(
         html,
         "<h1>The paper's Table 1 and figures, against Mitsuba 3</h1>\n<p>{}; {} threads. MSE against each scene's Mitsuba 3 reference; <em>corrected</em> subtracts the reference's own variance. Made by <code>mediareg table</code>, <code>mediareg figures</code> and <code>mediareg report</code>; every number is in <code>table/table1.json</code> and <code>figures/*.json</code>.</p>",
-        esc(run["budget"].as_str().unwrap_or("")),
-        run["threads"]
+        esc(&run.budget),
+        run.threads
     )?;
 
     // The table.
-    html.push_str("<h2>Table 1</h2>\n<table><tr><th>scene</th><th>method</th><th>spp</th><th>seconds</th><th>MSE</th><th>MSE corrected</th><th>÷ volpath</th></tr>\n");
+    html.push_str("<h2>Table 1</h2>\n<table><tr><th>scene</th><th>method</th><th>spp</th><th>seconds</th><th>MSE</th><th>MSE corrected</th><th>÷ volpath</th><th>× time ÷ volpath</th></tr>\n");
     for r in &rows {
-        let ratio =
-            ratio_to_volpath(&rows, &r.scene, r.method).map_or("–".into(), |x| format!("{x:.2}"));
+        let [raw, adjusted] = ratio_cells(&rows, r);
         writeln!(
             html,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.3e}</td><td>{:.3e}</td><td>{ratio}</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.3e}</td><td>{:.3e}</td><td>{raw}</td><td>{adjusted}</td></tr>",
             esc(&r.scene),
             r.method.as_str(),
             r.spp,
@@ -155,19 +153,16 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
             r.mse_corrected
         )?;
     }
-    html.push_str("</table>\n<table><tr><th>scene</th><th>paper: ours / PT</th><th>here: regularized / volpath</th><th>regularized_spatial / volpath</th><th>mitsuba_volpath / volpath</th></tr>\n");
+    html.push_str("</table>\n<table><tr><th>scene</th><th>paper: ours / PT</th><th>here: regularized / volpath (× time)</th><th>regularized_spatial / volpath (× time)</th><th>mitsuba_volpath / volpath (× time)</th></tr>\n");
     let mut scenes: Vec<&str> = rows.iter().map(|r| r.scene.as_str()).collect();
     scenes.dedup();
     for s in &scenes {
-        let f = |m| ratio_to_volpath(&rows, s, m).map_or("–".into(), |x| format!("{x:.2}"));
-        let paper = table1_row(s).map_or("–".into(), |p| format!("{:.2}", p.mse_ratio()));
+        let cells = paper_cells(&rows, s);
         writeln!(
             html,
-            "<tr><td>{}</td><td>{paper}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            "<tr><td>{}</td><td>{}</td></tr>",
             esc(s),
-            f(Method::Regularized),
-            f(Method::RegularizedSpatial),
-            f(Method::MitsubaVolpath)
+            cells.map(|c| esc(&c)).join("</td><td>")
         )?;
     }
     html.push_str("</table>\n");
@@ -244,10 +239,10 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
             }
         }
     }
-    if let Some(notes) = run["notes"].as_array().filter(|n| !n.is_empty()) {
+    if !run.notes.is_empty() {
         html.push_str("<h2>Notes</h2>\n<ul>\n");
-        for n in notes {
-            writeln!(html, "<li>{}</li>", esc(n.as_str().unwrap_or("")))?;
+        for n in &run.notes {
+            writeln!(html, "<li>{}</li>", esc(n))?;
         }
         html.push_str("</ul>\n");
     }
