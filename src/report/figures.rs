@@ -327,16 +327,16 @@ fn fig6(opts: &FigureOptions) -> Result<PathBuf> {
 fn fig9(opts: &FigureOptions) -> Result<PathBuf> {
     let mut points = Vec::new();
     let mut notes = Vec::new();
-    for factor in [0.1f32, 0.3, 0.5, 0.7, 0.8, 0.9, 0.93, 0.95, 0.97] {
+    for factor in [0.1f64, 0.3, 0.5, 0.7, 0.8, 0.9, 0.93, 0.95, 0.97] {
         let job = SceneJob {
             scene: "lucy".into(),
             reference: reference_name("lucy", opts.res),
             tag: format!("fig9_factor{factor}"),
         };
-        let run = sweep_point(opts, job, &[], opts.budget, Some(factor), false)?;
+        let run = sweep_point(opts, job, &[], opts.budget, Some(factor as f32), false)?;
         notes.extend(run.notes);
         points.push(Point {
-            x: factor as f64,
+            x: factor,
             rows: run.rows,
         });
     }
