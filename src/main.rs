@@ -70,9 +70,9 @@ struct TableArgs {
     /// Equal spp instead of equal time.
     #[arg(long)]
     spp: Option<u32>,
-    /// Output folder.
-    #[arg(long, default_value = "out/table")]
-    out: PathBuf,
+    /// Output folder (default: out/table, or out/figures for `figures`).
+    #[arg(long)]
+    out: Option<PathBuf>,
     #[arg(long, default_value = "mitsuba_scenes")]
     scene_dir: PathBuf,
     #[arg(long, default_value = "reference")]
@@ -570,7 +570,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Table(args) => {
-            let opts = table_options(args)?;
+            let opts = table_options(args, "out/table")?;
             let run = report::run_table(&opts)?;
             report::output::write_outputs(&opts, &run)?;
             for n in &run.notes {
@@ -602,10 +602,7 @@ fn run(cli: Cli) -> Result<()> {
             sweep_budget,
             fig7_spp,
         } => {
-            let mut base = table_options(table)?;
-            if base.out == Path::new("out/table") {
-                base.out = PathBuf::from("out/figures");
-            }
+            let base = table_options(table, "out/figures")?;
             let opts = report::figures::FigureOptions {
                 base,
                 figure_reference_dir,
@@ -624,7 +621,7 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 /// The table's options from its arguments (also the base of `figures`).
-fn table_options(args: TableArgs) -> Result<TableOptions> {
+fn table_options(args: TableArgs, default_out: &str) -> Result<TableOptions> {
     let TableArgs {
         scenes,
         budget,
@@ -668,7 +665,7 @@ fn table_options(args: TableArgs) -> Result<TableOptions> {
             Some(n) => Budget::Spp(n),
             None => Budget::Seconds(budget),
         },
-        out,
+        out: out.unwrap_or_else(|| PathBuf::from(default_out)),
         frames,
         w_a: wa,
         orbit_degrees: orbit,

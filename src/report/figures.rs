@@ -21,13 +21,14 @@ use serde::Serialize;
 
 use super::metrics::mse_against;
 use super::plot::{line_plot, Axes, Series};
-use super::table::{run_scene, Budget, Method, Reference, Row, SceneJob, TableOptions, TableRun};
+use super::table::{
+    load_with_reference, orbit_about_centre, run_scene, sequence_options, Budget, Method, Row,
+    SceneJob, TableOptions, TableRun,
+};
+use crate::image;
 use crate::integrator::Image;
+use crate::regularize;
 use crate::regularize::predict::Predictor;
-use crate::regularize::sequence::{image_centre_point, CameraPath};
-use crate::regularize::{self, CBeta, Reproject};
-use crate::scene::build_scene;
-use crate::{image, xml, BuildOverrides};
 
 /// The figures that exist, in the order they are made.
 pub const FIGURES: [&str; 6] = ["fig7", "fig11", "fig12", "fig6", "fig9", "speed"];
@@ -395,32 +396,12 @@ struct Fig7Data {
 /// table reference), predicted three ways.
 fn fig7(opts: &FigureOptions) -> Result<PathBuf> {
     let base = &opts.base;
-    let xml_path = base.scene_dir.join("cube.xml");
-    let load = xml::LoadOptions {
-        params: vec![],
-        search_dirs: base.search.clone(),
-    };
-    let reference = Reference::load(&base.reference_dir, "cube", &xml_path, &load)?;
-    let desc = xml::load_file(&xml_path, &load).map_err(|e| anyhow!("{e}"))?;
-    let mut scene = build_scene(&desc, &BuildOverrides::default()).map_err(|e| anyhow!("{e}"))?;
+    let (mut scene, reference) = load_with_reference(base, "cube", "cube", &[])?;
     let medium = scene.medium_index(None).map_err(|e| anyhow!("{e}"))?;
     scene.spp = opts.fig7_spp;
     scene.seed = base.seed.wrapping_add(700);
-    let target = image_centre_point(&scene).context("Fig. 7: the image centre sees nothing")?;
-    let ropts = regularize::Options {
-        medium,
-        factor: base.factor.unwrap_or(0.95),
-        frames: base.frames,
-        w_a: base.w_a,
-        path: CameraPath::Orbit {
-            degrees_per_frame: base.orbit_degrees,
-            target,
-        },
-        reproject: Reproject::Exact,
-        spatial: None,
-        method: regularize::Method::Paper(CBeta::Fixed(base.c_beta)),
-        show_progress: false,
-    };
+    let path = orbit_about_centre(base, &scene).context("Fig. 7: the image centre sees nothing")?;
+    let ropts = sequence_options(base, medium, base.factor.unwrap_or(0.95), path);
     let r = regularize::regularize(&mut scene, &ropts).map_err(|e| anyhow!("{e}"))?;
     let (w, h) = (r.source.width, r.source.height);
     let predictors = [

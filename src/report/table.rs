@@ -164,13 +164,14 @@ fn remake_hint(name: &str, xml: &Path, params: &[(String, String)], dir: &Path) 
 
 impl Reference {
     /// Loads `dir/NAME.exr`, `NAME_var.exr` and `NAME.json`, and checks that the
-    /// reference was made from these files (sha256 of the scene, its includes and
-    /// assets) and these `-D` parameters.
+    /// reference was made from the files `desc` reads (sha256 of the scene, its includes
+    /// and assets) and the `-D` parameters it was loaded with (`load`).
     pub fn load(
         dir: &Path,
         name: &str,
         xml_path: &Path,
         load: &xml::LoadOptions,
+        desc: &xml::SceneDescription,
     ) -> Result<Reference> {
         let hint = || remake_hint(name, xml_path, &load.params, dir);
         let json_path = dir.join(format!("{name}.json"));
@@ -193,7 +194,6 @@ impl Reference {
                 hint()
             );
         }
-        let desc = xml::load_file(xml_path, load).map_err(|e| anyhow!("{e}"))?;
         let mut seen = Vec::new();
         for f in desc.referenced_files() {
             let base = f
@@ -242,6 +242,78 @@ impl Reference {
             meta,
         })
     }
+}
+
+fn scene_file(opts: &TableOptions, scene: &str) -> PathBuf {
+    opts.scene_dir.join(format!("{scene}.xml"))
+}
+
+/// Loads `SCENE_DIR/scene.xml` with `params` and builds it, with its reference
+/// `REFERENCE_DIR/reference` checked against the files and parameters (read once).
+pub fn load_with_reference(
+    opts: &TableOptions,
+    scene: &str,
+    reference: &str,
+    params: &[(String, String)],
+) -> Result<(Scene, Reference)> {
+    let xml_path = scene_file(opts, scene);
+    if !xml_path.is_file() {
+        bail!(
+            "scene {scene}: {} does not exist (--scenes names files in {})",
+            xml_path.display(),
+            opts.scene_dir.display()
+        );
+    }
+    let load = xml::LoadOptions {
+        params: params.to_vec(),
+        search_dirs: opts.search.clone(),
+    };
+    let desc = xml::load_file(&xml_path, &load).map_err(|e| anyhow!("{e}"))?;
+    let reference = Reference::load(&opts.reference_dir, reference, &xml_path, &load, &desc)?;
+    let built = build_scene(&desc, &BuildOverrides::default()).map_err(|e| anyhow!("{e}"))?;
+    if built.integrator.kind != IntegratorKind::Volpath {
+        bail!("{}: the table needs a volpath scene", xml_path.display());
+    }
+    if built.film.crop_size != (reference.meta.width, reference.meta.height) {
+        bail!(
+            "{}: renders {}x{}, its reference is {}x{}",
+            xml_path.display(),
+            built.film.crop_size.0,
+            built.film.crop_size.1,
+            reference.meta.width,
+            reference.meta.height
+        );
+    }
+    Ok((built, reference))
+}
+
+/// The paper's method as the table runs it: N frames along `path`, exact
+/// reprojection, Eq. 10, then Eq. 11–12 with the run's fixed c_β.
+pub fn sequence_options(
+    opts: &TableOptions,
+    medium: u32,
+    factor: f32,
+    path: CameraPath,
+) -> regularize::Options {
+    regularize::Options {
+        medium,
+        factor,
+        frames: opts.frames,
+        w_a: opts.w_a,
+        path,
+        reproject: Reproject::Exact,
+        spatial: None,
+        method: regularize::Method::Paper(CBeta::Fixed(opts.c_beta)),
+        show_progress: false,
+    }
+}
+
+/// An orbit of the run's step about the first point the image centre sees.
+pub fn orbit_about_centre(opts: &TableOptions, scene: &Scene) -> Option<CameraPath> {
+    image_centre_point(scene).map(|target| CameraPath::Orbit {
+        degrees_per_frame: opts.orbit_degrees,
+        target,
+    })
 }
 
 /// Seconds per spp of `scene` with `gradient`: renders at 1, 2, 4, … spp until one takes
@@ -337,33 +409,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             eprintln!("[{tag}] {msg}");
         }
     };
-    let xml_path = opts.scene_dir.join(format!("{name}.xml"));
-    if !xml_path.is_file() {
-        bail!(
-            "scene {name}: {} does not exist (--scenes names files in {})",
-            xml_path.display(),
-            opts.scene_dir.display()
-        );
-    }
-    let load = xml::LoadOptions {
-        params: opts.params.clone(),
-        search_dirs: opts.search.clone(),
-    };
-    let reference = Reference::load(&opts.reference_dir, &job.reference, &xml_path, &load)?;
-    let desc = xml::load_file(&xml_path, &load).map_err(|e| anyhow!("{e}"))?;
-    let mut scene = build_scene(&desc, &BuildOverrides::default()).map_err(|e| anyhow!("{e}"))?;
-    if scene.integrator.kind != IntegratorKind::Volpath {
-        bail!("{}: the table needs a volpath scene", xml_path.display());
-    }
-    let (w, h) = scene.film.crop_size;
-    if (w, h) != (reference.meta.width, reference.meta.height) {
-        bail!(
-            "{}: renders {w}x{h}, its reference is {}x{}",
-            xml_path.display(),
-            reference.meta.width,
-            reference.meta.height
-        );
-    }
+    let (mut scene, reference) = load_with_reference(opts, name, &job.reference, &opts.params)?;
     let medium = scene
         .medium_index(None)
         .map_err(|e| anyhow!("{name}: {e}"))?;
@@ -440,29 +486,13 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
     push(Method::Volpath, &r.image, spp, r.stats.seconds, None)?;
 
     // The regularized method: temporal (the paper), then single-frame spatial.
-    let target = image_centre_point(&scene);
-    if target.is_none() {
+    let path = orbit_about_centre(opts, &scene).unwrap_or_else(|| {
         run.notes.push(format!(
             "{name}: the image centre sees no surface, so the regularized sequence keeps the camera still (frames differ only in noise)"
         ));
-    }
-    let temporal = regularize::Options {
-        medium,
-        factor,
-        frames: opts.frames,
-        w_a: opts.w_a,
-        path: match target {
-            Some(t) => CameraPath::Orbit {
-                degrees_per_frame: opts.orbit_degrees,
-                target: t,
-            },
-            None => CameraPath::Static,
-        },
-        reproject: Reproject::Exact,
-        spatial: None,
-        method: regularize::Method::Paper(CBeta::Fixed(opts.c_beta)),
-        show_progress: false,
-    };
+        CameraPath::Static
+    });
+    let temporal = sequence_options(opts, medium, factor, path);
     let spatial = regularize::Options {
         frames: 1,
         path: CameraPath::Static,
@@ -522,7 +552,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             };
             log("mitsuba_volpath: rendering".into());
             match runner.render(
-                &xml_path,
+                &scene_file(opts, name),
                 &file,
                 &opts.params,
                 &opts.search,

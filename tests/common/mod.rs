@@ -10,7 +10,6 @@ use mediareg::image::stats::{compare, Comparison, Estimate};
 use mediareg::scene::Scene;
 use mediareg::xml::LoadOptions;
 use mediareg::BuildOverrides;
-use sha2::{Digest, Sha256};
 
 pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -98,14 +97,8 @@ pub fn render_gradient_chunks(
         .collect()
 }
 
-pub fn sha256_file(path: &Path) -> String {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    format!("{:x}", Sha256::digest(&bytes))
-}
-
 pub struct Reference {
     pub estimate: Estimate,
-    pub json: serde_json::Value,
 }
 
 impl Reference {
@@ -128,14 +121,14 @@ impl Reference {
 }
 
 /// Loads reference/NAME.{exr,_var.exr,json} and fails if the scene or any asset no
-/// longer hashes to what the reference was made from.
+/// longer hashes to what the reference was made from (the check `mediareg table` makes,
+/// with the parameters the reference records).
 pub fn reference(name: &str, scene: &Path) -> Reference {
     let dir = root().join("reference");
     let json: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join(format!("{name}.json"))).expect("reference json"),
     )
     .expect("valid json");
-    // Stale check: every file the scene reads must hash as recorded, and vice versa.
     let params: Vec<(String, String)> = json["params"]
         .as_object()
         .map(|m| {
@@ -149,39 +142,15 @@ pub fn reference(name: &str, scene: &Path) -> Reference {
         search_dirs: mesh_dirs(),
     };
     let desc = mediareg::xml::load_file(scene, &opts).unwrap_or_else(|e| panic!("{e}"));
-    let recorded = json["sha256"].as_object().expect("sha256 map");
-    let mut seen = Vec::new();
-    for f in desc.referenced_files() {
-        let base = f.file_name().unwrap().to_string_lossy().into_owned();
-        let want = recorded.get(&base).and_then(|v| v.as_str()).unwrap_or_else(|| {
-            panic!("reference/{name}.json does not record {base}: the reference is stale, regenerate it with scripts/mitsuba_reference.py")
-        });
-        assert_eq!(
-            sha256_file(&f),
-            want,
-            "{} changed since reference/{name} was made: regenerate it with scripts/mitsuba_reference.py",
-            f.display()
-        );
-        seen.push(base);
-    }
-    for k in recorded.keys() {
-        assert!(
-            seen.contains(k),
-            "reference/{name}.json records {k}, which the scene no longer reads: stale reference"
-        );
-    }
-    let mean = mediareg::image::read_exr(&dir.join(format!("{name}.exr"))).expect("reference exr");
-    let var = mediareg::image::read_exr(&dir.join(format!("{name}_var.exr")))
-        .expect("reference variance exr");
-    let chunks = json["chunks"].as_u64().expect("chunks") as f64;
+    let r = mediareg::report::table::Reference::load(&dir, name, scene, &opts, &desc)
+        .unwrap_or_else(|e| panic!("{e:#}"));
     let to64 = |v: &[[f32; 3]]| v.iter().map(|p| p.map(|c| c as f64)).collect::<Vec<_>>();
     Reference {
         estimate: Estimate {
-            mean: to64(&mean.pixels),
-            var_mean: to64(&var.pixels),
-            dof: chunks - 1.0,
+            mean: to64(&r.mean.pixels),
+            var_mean: to64(&r.var.pixels),
+            dof: r.meta.chunks as f64 - 1.0,
         },
-        json,
     }
 }
 
