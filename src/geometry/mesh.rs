@@ -409,32 +409,6 @@ impl TriangleMesh {
         self.triangles[tri as usize].map(|i| self.positions[i as usize])
     }
 
-    /// Möller–Trumbore. Returns (t, u, v) with barycentrics u for vertex 1, v for vertex 2.
-    #[inline]
-    pub fn intersect(&self, tri: u32, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(f32, f32, f32)> {
-        let [p0, p1, p2] = self.vertices(tri);
-        let e1 = p1 - p0;
-        let e2 = p2 - p0;
-        let pv = d.cross(e2);
-        let det = e1.dot(pv);
-        if det == 0.0 {
-            return None;
-        }
-        let inv = 1.0 / det;
-        let tv = o - p0;
-        let u = tv.dot(pv) * inv;
-        if !(0.0..=1.0).contains(&u) {
-            return None;
-        }
-        let qv = tv.cross(e1);
-        let v = d.dot(qv) * inv;
-        if v < 0.0 || u + v > 1.0 {
-            return None;
-        }
-        let t = e2.dot(qv) * inv;
-        (t > 0.0 && t < tmax).then_some((t, u, v))
-    }
-
     /// Texture coordinates at barycentrics (u, v): interpolated from the file's, else
     /// (u, v) themselves, as Mitsuba does for a mesh without texture coordinates.
     pub fn uv(&self, tri: u32, u: f32, v: f32) -> Vec2 {
