@@ -1,6 +1,6 @@
-//! Rendering: the film is cut into 32×32 blocks rendered in parallel (rayon), in passes
-//! of samples per pixel (1, 1, 2, 4, … up to an eighth of the total), so that a render
-//! can be cut short between passes with an image of uniform spp. Each sample has its
+//! Rendering: the film is cut into blocks (32×32, smaller for small images) rendered in
+//! parallel (rayon), in passes of samples per pixel (1, 1, 2, 4, … up to an eighth of
+//! the total), so that a render can be cut short between passes with an image of uniform spp. Each sample has its
 //! own random stream (seed, pixel, sample index), and blocks are merged in a fixed order
 //! whose pass schedule depends on spp only, so a seed gives the bit-identical image at
 //! any thread count.
@@ -21,7 +21,18 @@ use crate::scene::film::ImageBlock;
 use crate::scene::{IntegratorKind, Scene, SurfaceInteraction};
 use sampler::Pcg32;
 
-const BLOCK: usize = 32;
+/// The block side: 32, or smaller for a small image so that there are at least
+/// `MIN_BLOCKS` blocks to share between threads (a 64×64 film in four 32×32 blocks
+/// of unequal cost kept one of two threads idle a third of the time). It depends on the
+/// image size only, never on the thread count, so the image stays bit-identical at any
+/// thread count.
+fn block_size(width: usize, height: usize) -> usize {
+    const MIN_BLOCKS: usize = 64;
+    [32, 16, 8]
+        .into_iter()
+        .find(|&b| width.div_ceil(b) * height.div_ceil(b) >= MIN_BLOCKS)
+        .unwrap_or(8)
+}
 
 /// Uniform emitter selection that reuses the sample (Mitsuba's `Scene::sample_emitter`):
 /// the index and the rescaled sample.
@@ -194,9 +205,10 @@ pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
     };
 
     let mut tiles = Vec::new();
-    for ty in (0..ch).step_by(BLOCK) {
-        for tx in (0..cw).step_by(BLOCK) {
-            tiles.push((tx, ty, BLOCK.min(cw - tx), BLOCK.min(ch - ty)));
+    let block = block_size(cw, ch);
+    for ty in (0..ch).step_by(block) {
+        for tx in (0..cw).step_by(block) {
+            tiles.push((tx, ty, block.min(cw - tx), block.min(ch - ty)));
         }
     }
     let total = (cw * ch) as u64 * spp as u64;
@@ -308,5 +320,23 @@ pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
             invalid_samples,
             interrupted: spp_done < spp,
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocks_shrink_for_small_images_only() {
+        assert_eq!(block_size(1024, 1024), 32);
+        assert_eq!(block_size(256, 256), 32);
+        assert_eq!(block_size(128, 128), 16);
+        assert_eq!(block_size(64, 64), 8);
+        assert_eq!(block_size(3, 5), 8);
+        for (w, h) in [(64, 64), (100, 37), (128, 128), (512, 300)] {
+            let b = block_size(w, h);
+            assert!(w.div_ceil(b) * h.div_ceil(b) >= 64, "{w}x{h}: block {b}");
+        }
     }
 }
