@@ -66,7 +66,11 @@ fn missing_mesh_file() {
 
 #[test]
 fn unknown_plugin() {
-    expect_error("unknown_plugin.xml", 6, &["teapot", "ply, obj, sphere"]);
+    expect_error(
+        "unknown_plugin.xml",
+        6,
+        &["teapot", "ply, obj, serialized, sphere"],
+    );
 }
 
 #[test]

@@ -101,7 +101,7 @@ const EXPECTED: &[(&str, Status)] = &[
     ("mdata_cbox", Refused("sampled spectrum")),
     (
         "mdata_matpreview",
-        Refused("unsupported shape plugin \"serialized\""),
+        Refused("unsupported bsdf plugin \"plastic\""),
     ),
     (
         "mdata_hello",
@@ -114,7 +114,13 @@ const EXPECTED: &[(&str, Status)] = &[
     ),
     (
         "mdata_shape_ply_bunny",
-        Refused("unsupported shape plugin \"serialized\""),
+        Matches {
+            // 960×720, a serialized plane with a checkerboard and a PLY bunny.
+            reference: "corpus_mdata_shape_ply_bunny",
+            params: &[],
+            chunks: 8,
+            spp: 8,
+        },
     ),
     (
         "mts06_test_bidir_2",

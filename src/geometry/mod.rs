@@ -2,6 +2,7 @@
 
 pub mod accel;
 pub mod mesh;
+pub mod serialized;
 pub mod shape;
 
 use glam::Vec3A;

@@ -17,6 +17,7 @@ use crate::emitter::{BSphere, Emitter};
 use crate::error::{err_at, Result, SceneError};
 use crate::geometry::accel::Accel;
 use crate::geometry::mesh::{cube, read_obj, read_ply, TriangleMesh};
+use crate::geometry::serialized::read_serialized;
 use crate::geometry::shape::{Geometry, Planar, Sphere};
 use crate::geometry::RAY_EPSILON;
 use crate::medium::{HomogeneousMedium, Phase};
@@ -470,7 +471,7 @@ impl Builder<'_> {
         let to_world = p.transform("to_world")?;
         let flip_normals = p.bool("flip_normals", false)?;
         let geometry = match p.obj.plugin.as_str() {
-            "ply" | "obj" => {
+            "ply" | "obj" | "serialized" => {
                 let (name, loc) = p
                     .string_opt("filename")?
                     .ok_or_else(|| p.error("missing the \"filename\" property"))?;
@@ -483,10 +484,16 @@ impl Builder<'_> {
                         ))
                 })?;
                 let face_normals = p.bool("face_normals", false)?;
-                let mut raw = if p.obj.plugin == "ply" {
-                    read_ply(&path)
-                } else {
-                    read_obj(&path)
+                let mut raw = match p.obj.plugin.as_str() {
+                    "ply" => read_ply(&path),
+                    "obj" => read_obj(&path),
+                    _ => {
+                        let index = p.int("shape_index", 0)?;
+                        let index = u32::try_from(index).map_err(|_| {
+                            p.error(format!("shape_index = {index}: must be 0 or more"))
+                        })?;
+                        read_serialized(&path, index)
+                    }
                 }
                 // Name the scene line of the <shape> too, not only the mesh file.
                 .map_err(|e| SceneError::at(p.loc(), format!("{}: {e}", p.obj.label())))?;
@@ -541,7 +548,7 @@ impl Builder<'_> {
                 return Err(unsupported(
                     &p,
                     "shape",
-                    "ply, obj, sphere, cube, rectangle, disk",
+                    "ply, obj, serialized, sphere, cube, rectangle, disk",
                 ))
             }
         };
@@ -587,6 +594,7 @@ impl Builder<'_> {
         let names = match p.obj.plugin.as_str() {
             "ply" => "filename, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
             "obj" => "filename, to_world, face_normals, flip_normals, flip_tex_coords, bsdf, emitter, interior, exterior",
+            "serialized" => "filename, shape_index, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
             "sphere" => "center, radius, to_world, flip_normals, bsdf, emitter, interior, exterior",
             _ => "to_world, flip_normals, bsdf, emitter, interior, exterior",
         };
