@@ -96,12 +96,18 @@ const EXPECTED: &[(&str, Status)] = &[
     ),
     (
         "mdata_surf_area_light_volpath",
-        Refused("unsupported bsdf plugin \"plastic\""),
+        Refused("unsupported bsdf plugin \"roughplastic\""),
     ),
     ("mdata_cbox", Refused("sampled spectrum")),
     (
         "mdata_matpreview",
-        Refused("unsupported bsdf plugin \"plastic\""),
+        Matches {
+            // Three serialized meshes, the coated one `plastic` (int_ior 1.9).
+            reference: "corpus_mdata_matpreview",
+            params: &[("width", "171"), ("height", "128")],
+            chunks: 8,
+            spp: 64,
+        },
     ),
     (
         "mdata_hello",

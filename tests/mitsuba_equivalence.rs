@@ -111,6 +111,31 @@ fn conductor_comparison_detects_k_off() {
     assert!(!c.passed, "a 5% change of k went undetected: {c}");
 }
 
+/// Smooth `plastic`: the linear and the nonlinear model, a tinted coating, a named
+/// int_ior and a checkerboard base.
+#[test]
+fn plastic_matches_mitsuba() {
+    let c = check("plastic", &[], 14);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: the left sphere's base 2% darker must fail.
+#[test]
+fn plastic_comparison_detects_diffuse_off_by_two_percent() {
+    let c = check("plastic", &[("diffuse", "0.921, 0.266, 0.354")], 15);
+    assert!(
+        !c.passed,
+        "a 2% change of diffuse_reflectance went undetected: {c}"
+    );
+}
+
+/// Power: the left sphere's coating at int_ior 1.8 instead of 1.9 must fail.
+#[test]
+fn plastic_comparison_detects_int_ior_off() {
+    let c = check("plastic", &[("int_ior", "1.8")], 16);
+    assert!(!c.passed, "int_ior 1.8 for 1.9 went undetected: {c}");
+}
+
 /// `envmap`: a rotated, scaled latitude-longitude sky with a sun lights diffuse objects
 /// and a glass sphere, and is seen directly (Mitsuba's lookup, this renderer's sampling).
 #[test]

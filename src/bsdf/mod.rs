@@ -1,11 +1,12 @@
-//! Surface scattering: Mitsuba 3's `null`, `diffuse`, `dielectric`, `conductor` and
-//! `twosided`.
+//! Surface scattering: Mitsuba 3's `null`, `diffuse`, `dielectric`, `conductor`,
+//! `plastic` and `twosided`.
 //!
 //! All directions are in the local shading frame (z = shading normal), `wi` points away
 //! from the surface toward where the path came from, as in Mitsuba.
 
 pub mod conductor;
 pub mod dielectric;
+pub mod plastic;
 pub mod texture;
 
 use std::f32::consts::FRAC_1_PI;
@@ -14,6 +15,7 @@ use glam::{Vec2, Vec3, Vec3A};
 
 pub use conductor::Conductor;
 pub use dielectric::Dielectric;
+pub use plastic::Plastic;
 pub use texture::Texture;
 
 #[derive(Clone, Debug)]
@@ -27,6 +29,8 @@ pub enum Bsdf {
     Dielectric(Dielectric),
     /// A smooth conductor: Fresnel-weighted mirror reflection.
     Conductor(Conductor),
+    /// A diffuse base under a smooth dielectric coating.
+    Plastic(Plastic),
     /// Mitsuba's `twosided`: the back side uses `back` (or the same BSDF mirrored).
     TwoSided(Box<[Bsdf; 2]>),
 }
@@ -51,7 +55,7 @@ impl Bsdf {
     pub fn is_smooth(&self) -> bool {
         match self {
             Bsdf::Null | Bsdf::Dielectric(_) | Bsdf::Conductor(_) => false,
-            Bsdf::Diffuse { .. } => true,
+            Bsdf::Diffuse { .. } | Bsdf::Plastic(_) => true,
             Bsdf::TwoSided(b) => b[0].is_smooth() || b[1].is_smooth(),
         }
     }
@@ -60,6 +64,7 @@ impl Bsdf {
     pub fn is_textured(&self) -> bool {
         match self {
             Bsdf::Diffuse { reflectance } => reflectance.constant().is_none(),
+            Bsdf::Plastic(p) => p.diffuse_reflectance.constant().is_none(),
             Bsdf::TwoSided(b) => b[0].is_textured() || b[1].is_textured(),
             _ => false,
         }
@@ -81,6 +86,7 @@ impl Bsdf {
                     (Vec3::ZERO, 0.0)
                 }
             }
+            Bsdf::Plastic(p) => p.eval_pdf(wi, wo, uv),
             Bsdf::TwoSided(b) => {
                 let (front, back) = (&b[0], &b[1]);
                 if wi.z > 0.0 {
@@ -123,6 +129,7 @@ impl Bsdf {
             }
             Bsdf::Dielectric(d) => d.sample(wi, s1),
             Bsdf::Conductor(c) => c.sample(wi),
+            Bsdf::Plastic(p) => p.sample(wi, s1, s2, uv),
             Bsdf::TwoSided(b) => {
                 if wi.z > 0.0 {
                     b[0].sample(wi, s1, s2, uv)

@@ -36,6 +36,15 @@ impl Texture {
         }
     }
 
+    /// The mean over the texture's domain and the channels (Mitsuba's `Texture::mean`;
+    /// a checkerboard covers half its domain with each colour).
+    pub fn mean(&self) -> f32 {
+        match self {
+            Texture::Constant(c) => c.element_sum() / 3.0,
+            Texture::Checkerboard { color0, color1, .. } => (*color0 + *color1).element_sum() / 6.0,
+        }
+    }
+
     /// The value, when it does not vary.
     pub fn constant(&self) -> Option<Vec3> {
         match self {

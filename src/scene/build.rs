@@ -11,7 +11,7 @@ use super::film::{Film, Rfilter};
 use super::props::Props;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
 use crate::bsdf::dielectric::named_ior;
-use crate::bsdf::{Bsdf, Conductor, Dielectric, Texture};
+use crate::bsdf::{Bsdf, Conductor, Dielectric, Plastic, Texture};
 use crate::emitter::envmap::EnvMap;
 use crate::emitter::{BSphere, Emitter};
 use crate::error::{err_at, Result, SceneError};
@@ -717,6 +717,25 @@ impl Builder<'_> {
                     specular_reflectance: sr,
                 })
             }
+            "plastic" => {
+                let int_ior = ior(&p, "int_ior", "polypropylene")?;
+                let ext_ior = ior(&p, "ext_ior", "air")?;
+                let diffuse_reflectance =
+                    self.reflectance(&p, "diffuse_reflectance", Vec3::splat(0.5))?;
+                let specular_reflectance = if p.has("specular_reflectance") {
+                    Some(p.color_nonneg("specular_reflectance", Vec3::ONE)?)
+                } else {
+                    None
+                };
+                let nonlinear = p.bool("nonlinear", false)?;
+                p.finish("int_ior, ext_ior, diffuse_reflectance, specular_reflectance, nonlinear")?;
+                Bsdf::Plastic(Plastic {
+                    eta: (int_ior / ext_ior) as f32,
+                    diffuse_reflectance,
+                    specular_reflectance,
+                    nonlinear,
+                })
+            }
             "twosided" => {
                 let nested = p.children_of(ObjectKind::Bsdf);
                 let (front, back) = match nested.as_slice() {
@@ -734,7 +753,7 @@ impl Builder<'_> {
                 return Err(unsupported(
                     &p,
                     "bsdf",
-                    "null, diffuse, dielectric, conductor, twosided",
+                    "null, diffuse, dielectric, conductor, plastic, twosided",
                 ))
             }
         };
