@@ -65,7 +65,7 @@ const EXPECTED: &[(&str, Status)] = &[
     ),
     (
         "mdata_homo_obj_inside_medium",
-        Refused("unsupported bsdf plugin \"thindielectric\""),
+        Refused("unsupported bsdf plugin \"roughplastic\""),
     ),
     (
         "mdata_homo_roughdielectric_spot",

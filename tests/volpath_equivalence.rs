@@ -48,6 +48,33 @@ fn medium_in_dielectric_matches_mitsuba() {
     assert!(c.passed, "{c}");
 }
 
+/// `thindielectric`: a pane sphere bounding a medium and a tinted pane; the transmission
+/// is a null lobe and shadow rays pass through weighted by it.
+#[test]
+fn thindielectric_matches_mitsuba() {
+    let c = check("thindielectric", &[], 31);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: the tinted pane's transmittance 2% lower must fail.
+#[test]
+fn thindielectric_comparison_detects_transmittance_off_by_two_percent() {
+    let c = check(
+        "thindielectric",
+        &[("pane_transmittance", "0.882, 0.784, 0.686")],
+        32,
+    );
+    assert!(!c.passed, "a 2% transmittance change went undetected: {c}");
+}
+
+/// Power: the sphere's panes at int_ior 1.7 instead of 1.5 must fail (1.6 failed only
+/// by the blue global z, 5.9 against 5.3: too close to rely on).
+#[test]
+fn thindielectric_comparison_detects_int_ior_off() {
+    let c = check("thindielectric", &[("int_ior", "1.7")], 33);
+    assert!(!c.passed, "int_ior 1.7 for 1.5 went undetected: {c}");
+}
+
 /// max_depth 3, rr_depth 1, hide_emitters, a directional light and a hidden sky.
 #[test]
 fn max_depth_directional_matches_mitsuba() {

@@ -108,6 +108,51 @@ impl Dielectric {
     }
 }
 
+/// Mitsuba 3's `thindielectric` (`src/bsdfs/thindielectric.cpp`): a thin pane of
+/// relative index η, seen the same from both sides. With F the Fresnel reflectance at
+/// |cos θ_i|, the light bouncing inside the pane sums to r = F + (1−F)² F / (1 − F²)
+/// = 2F / (1 + F) reflected and t = 1 − r passed straight through. The transmission is a
+/// *null* lobe (no refraction, no change of direction): the path does not count it as a
+/// scattering vertex, and shadow rays pass through weighted by t.
+#[derive(Clone, Debug)]
+pub struct ThinDielectric {
+    /// int_ior / ext_ior
+    pub eta: f32,
+    pub specular_reflectance: Vec3,
+    pub specular_transmittance: Vec3,
+}
+
+impl ThinDielectric {
+    /// r = 2F / (1 + F): the reflectance with all internal reflections.
+    fn reflectance(&self, cos_theta_i: f32) -> f32 {
+        let f = fresnel(cos_theta_i.abs(), self.eta).0;
+        f * 2.0 / (1.0 + f)
+    }
+
+    /// What passes straight through (Mitsuba's `eval_null_transmission`).
+    pub fn null_transmission(&self, cos_theta_i: f32) -> Vec3 {
+        self.specular_transmittance * (1.0 - self.reflectance(cos_theta_i))
+    }
+
+    pub fn sample(&self, wi: Vec3A, s1: f32) -> Option<BsdfSample> {
+        let r = self.reflectance(wi.z);
+        let reflect = s1 <= r;
+        let (wo, pdf, weight) = if reflect {
+            (Vec3A::new(-wi.x, -wi.y, wi.z), r, self.specular_reflectance)
+        } else {
+            (-wi, 1.0 - r, self.specular_transmittance)
+        };
+        (pdf > 0.0).then_some(BsdfSample {
+            wo,
+            pdf,
+            weight,
+            eta: 1.0,
+            delta: true,
+            null: !reflect,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -133,5 +178,26 @@ mod tests {
         let sin_t = (bs.wo.x * bs.wo.x + bs.wo.y * bs.wo.y).sqrt();
         assert!((0.6 - 1.5 * sin_t).abs() < 1e-5, "{sin_t}");
         assert!(bs.wo.z < 0.0 && (bs.wo.length() - 1.0).abs() < 1e-5);
+    }
+
+    /// The pane's reflectance sums the internal bounces: r = 2F/(1+F) ≥ F, and the
+    /// transmission is what is left; both lobes are picked in proportion.
+    #[test]
+    fn thin_dielectric_sums_internal_reflections() {
+        let t = ThinDielectric {
+            eta: 1.5,
+            specular_reflectance: Vec3::ONE,
+            specular_transmittance: Vec3::splat(0.9),
+        };
+        let f = fresnel(1.0, 1.5).0;
+        let r = t.reflectance(-1.0);
+        assert!((r - 2.0 * f / (1.0 + f)).abs() < 1e-7 && r > f);
+        assert!((t.null_transmission(1.0).x - 0.9 * (1.0 - r)).abs() < 1e-6);
+        let wi = Vec3A::new(0.6, 0.0, -0.8);
+        let refl = t.sample(wi, 0.0).unwrap();
+        assert!(!refl.null && refl.wo == Vec3A::new(-0.6, 0.0, -0.8) && refl.weight == Vec3::ONE);
+        let pass = t.sample(wi, 0.99).unwrap();
+        assert!(pass.null && pass.wo == -wi && pass.weight == Vec3::splat(0.9));
+        assert!((refl.pdf + pass.pdf - 1.0).abs() < 1e-6);
     }
 }

@@ -1,5 +1,5 @@
-//! Surface scattering: Mitsuba 3's `null`, `diffuse`, `dielectric`, `conductor`,
-//! `plastic` and `twosided`.
+//! Surface scattering: Mitsuba 3's `null`, `diffuse`, `dielectric`, `thindielectric`,
+//! `conductor`, `plastic` and `twosided`.
 //!
 //! All directions are in the local shading frame (z = shading normal), `wi` points away
 //! from the surface toward where the path came from, as in Mitsuba.
@@ -14,7 +14,7 @@ use std::f32::consts::FRAC_1_PI;
 use glam::{Vec2, Vec3, Vec3A};
 
 pub use conductor::Conductor;
-pub use dielectric::Dielectric;
+pub use dielectric::{Dielectric, ThinDielectric};
 pub use plastic::Plastic;
 pub use texture::Texture;
 
@@ -27,6 +27,8 @@ pub enum Bsdf {
         reflectance: Texture,
     },
     Dielectric(Dielectric),
+    /// A thin pane: specular reflection, and straight (null) transmission.
+    ThinDielectric(ThinDielectric),
     /// A smooth conductor: Fresnel-weighted mirror reflection.
     Conductor(Conductor),
     /// A diffuse base under a smooth dielectric coating.
@@ -54,7 +56,9 @@ impl Bsdf {
     /// Whether the BSDF has a non-Dirac component (emitter sampling is worthwhile).
     pub fn is_smooth(&self) -> bool {
         match self {
-            Bsdf::Null | Bsdf::Dielectric(_) | Bsdf::Conductor(_) => false,
+            Bsdf::Null | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Conductor(_) => {
+                false
+            }
             Bsdf::Diffuse { .. } | Bsdf::Plastic(_) => true,
             Bsdf::TwoSided(b) => b[0].is_smooth() || b[1].is_smooth(),
         }
@@ -74,11 +78,42 @@ impl Bsdf {
         matches!(self, Bsdf::Null)
     }
 
+    /// Whether some light passes straight through (Mitsuba's `BSDFFlags::Null` among the
+    /// BSDF's flags): `null`, `thindielectric`.
+    pub fn has_null_component(&self) -> bool {
+        match self {
+            Bsdf::Null | Bsdf::ThinDielectric(_) => true,
+            Bsdf::TwoSided(b) => b[0].has_null_component() || b[1].has_null_component(),
+            _ => false,
+        }
+    }
+
+    /// What passes straight through toward a direction whose cosine with the shading
+    /// normal is `cos_o` (Mitsuba's `eval_null_transmission` at wi = −wo, so
+    /// cos θ_i = −cos_o): 1 for `null`, the pane's transmission for `thindielectric`,
+    /// 0 (blocked) for the others.
+    pub fn null_transmission(&self, cos_o: f32) -> Vec3 {
+        match self {
+            Bsdf::Null => Vec3::ONE,
+            Bsdf::ThinDielectric(t) => t.null_transmission(-cos_o),
+            Bsdf::TwoSided(b) => {
+                if -cos_o > 0.0 {
+                    b[0].null_transmission(cos_o)
+                } else {
+                    b[1].null_transmission(-cos_o)
+                }
+            }
+            _ => Vec3::ZERO,
+        }
+    }
+
     /// `f(wi, wo) · |cos θ_o|` and the pdf of sampling `wo` (0 for Dirac lobes), at
     /// texture coordinates `uv`.
     pub fn eval_pdf(&self, wi: Vec3A, wo: Vec3A, uv: Vec2) -> (Vec3, f32) {
         match self {
-            Bsdf::Null | Bsdf::Dielectric(_) | Bsdf::Conductor(_) => (Vec3::ZERO, 0.0),
+            Bsdf::Null | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Conductor(_) => {
+                (Vec3::ZERO, 0.0)
+            }
             Bsdf::Diffuse { reflectance } => {
                 if wi.z > 0.0 && wo.z > 0.0 {
                     (reflectance.eval(uv) * (FRAC_1_PI * wo.z), FRAC_1_PI * wo.z)
@@ -128,6 +163,7 @@ impl Bsdf {
                 })
             }
             Bsdf::Dielectric(d) => d.sample(wi, s1),
+            Bsdf::ThinDielectric(t) => t.sample(wi, s1),
             Bsdf::Conductor(c) => c.sample(wi),
             Bsdf::Plastic(p) => p.sample(wi, s1, s2, uv),
             Bsdf::TwoSided(b) => {

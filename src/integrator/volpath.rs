@@ -64,7 +64,8 @@ fn medium_after(info: &ShapeInfo, n: Vec3A, d: Vec3A, current: Option<u32>) -> O
 
 /// Transmittance from `o` along unit `d` over `dist`, starting in `medium`: the product
 /// of `e^{−σ_t s}` over the segments, through `null` surfaces (switching medium by the
-/// side crossed); 0 if any other surface blocks the way.
+/// side crossed) and `thindielectric` ones (times their transmission); 0 if any other
+/// surface blocks the way.
 fn shadow_transmittance(
     scene: &Scene,
     mut o: Vec3A,
@@ -84,7 +85,10 @@ fn shadow_transmittance(
         }
         let Some(h) = hit else { return tr };
         let info = &scene.shapes[h.shape as usize];
-        if !scene.bsdfs[info.bsdf as usize].is_null() || tr == Vec3::ZERO {
+        // Through a null or thin-dielectric surface, by what it lets through; any
+        // other surface blocks.
+        tr *= scene.bsdfs[info.bsdf as usize].null_transmission(h.sh_frame.n.dot(d));
+        if tr == Vec3::ZERO {
             return Vec3::ZERO;
         }
         medium = medium_after(info, h.n, d, medium);

@@ -11,7 +11,7 @@ use super::film::{Film, Rfilter};
 use super::props::Props;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
 use crate::bsdf::dielectric::named_ior;
-use crate::bsdf::{Bsdf, Conductor, Dielectric, Plastic, Texture};
+use crate::bsdf::{Bsdf, Conductor, Dielectric, Plastic, Texture, ThinDielectric};
 use crate::emitter::envmap::EnvMap;
 use crate::emitter::{BSphere, Emitter};
 use crate::error::{err_at, Result, SceneError};
@@ -684,17 +684,28 @@ impl Builder<'_> {
                 p.finish("reflectance")?;
                 Bsdf::Diffuse { reflectance }
             }
-            "dielectric" => {
+            // The same parameters, and defaults, for both.
+            "dielectric" | "thindielectric" => {
                 let int_ior = ior(&p, "int_ior", "bk7")?;
                 let ext_ior = ior(&p, "ext_ior", "air")?;
-                let sr = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
-                let st = p.color_nonneg("specular_transmittance", Vec3::ONE)?;
+                let eta = (int_ior / ext_ior) as f32;
+                let specular_reflectance = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
+                let specular_transmittance = p.color_nonneg("specular_transmittance", Vec3::ONE)?;
+                let thin = p.obj.plugin == "thindielectric";
                 p.finish("int_ior, ext_ior, specular_reflectance, specular_transmittance")?;
-                Bsdf::Dielectric(Dielectric {
-                    eta: (int_ior / ext_ior) as f32,
-                    specular_reflectance: sr,
-                    specular_transmittance: st,
-                })
+                if !thin {
+                    Bsdf::Dielectric(Dielectric {
+                        eta,
+                        specular_reflectance,
+                        specular_transmittance,
+                    })
+                } else {
+                    Bsdf::ThinDielectric(ThinDielectric {
+                        eta,
+                        specular_reflectance,
+                        specular_transmittance,
+                    })
+                }
             }
             "conductor" => {
                 let sr = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
@@ -753,7 +764,7 @@ impl Builder<'_> {
                 return Err(unsupported(
                     &p,
                     "bsdf",
-                    "null, diffuse, dielectric, conductor, plastic, twosided",
+                    "null, diffuse, dielectric, thindielectric, conductor, plastic, twosided",
                 ))
             }
         };
