@@ -301,3 +301,25 @@ fn ply_count_beyond_u64() {
 fn shape_too_large_for_single_precision() {
     expect_error("huge_sphere.xml", 6, &["1e19", "within ±1e12", "to_world"]);
 }
+
+#[test]
+fn spot_beam_wider_than_its_cutoff() {
+    expect_error(
+        "spot_beam_wider_than_cutoff.xml",
+        6,
+        &[
+            "cutoff_angle 10",
+            "beam_width 20",
+            "beam_width <= cutoff_angle",
+        ],
+    );
+}
+
+#[test]
+fn corrupt_serialized_mesh() {
+    expect_error(
+        "serialized_corrupt.xml",
+        6,
+        &["corrupt.serialized", "truncated or corrupt", "re-export"],
+    );
+}

@@ -1161,7 +1161,7 @@ fn emitter_values(tag: &str, value_xml: &str) -> [Vec3; 4] {
             Emitter::Constant { radiance } => out[1] = *radiance,
             Emitter::Directional { irradiance, .. } => out[2] = *irradiance,
             Emitter::Area { radiance, .. } => out[3] = *radiance,
-            Emitter::EnvMap(_) => panic!("{tag}: no envmap in this scene"),
+            Emitter::EnvMap(_) | Emitter::Spot(_) => panic!("{tag}: only the four above"),
         }
     }
     assert_eq!(scene.emitters.len(), 4, "{tag}: four emitters");

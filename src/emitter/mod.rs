@@ -1,4 +1,5 @@
-//! Light sources: Mitsuba 3's `area`, `point`, `constant`, `envmap` and `directional`.
+//! Light sources: Mitsuba 3's `area`, `point`, `spot`, `constant`, `envmap` and
+//! `directional`.
 //!
 //! `sample_direction` returns, for a reference point, a direction toward the light, the
 //! distance to travel, the solid-angle pdf (1 for Dirac lights) and `Le / pdf`.
@@ -7,7 +8,7 @@ pub mod envmap;
 
 use std::f32::consts::PI;
 
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{Mat3A, Vec2, Vec3, Vec3A};
 
 use crate::geometry::shape::{square_to_uniform_sphere, Geometry};
 
@@ -17,12 +18,44 @@ pub enum Emitter {
     Area { shape: u32, radiance: Vec3 },
     /// `intensity / r²` from `position`.
     Point { position: Vec3A, intensity: Vec3 },
+    /// Mitsuba's `spot`: `intensity · falloff / r²` from `position`, the falloff 1 inside
+    /// the beam, dropping linearly in angle to 0 at the cutoff.
+    Spot(Spot),
     /// Uniform environment `radiance` from every direction.
     Constant { radiance: Vec3 },
     /// An environment image (latitude-longitude).
     EnvMap(Box<envmap::EnvMap>),
     /// Parallel light travelling along `direction`, `irradiance` on a surface facing it.
     Directional { direction: Vec3A, irradiance: Vec3 },
+}
+
+/// Mitsuba 3's `spot` (`src/emitters/spot.cpp`): a point light shining along its local
+/// +z. With θ the angle from that axis, the falloff is 1 for θ ≤ beam_width,
+/// (cutoff − θ) / (cutoff − beam_width) up to the cutoff, and 0 beyond.
+#[derive(Clone, Debug)]
+pub struct Spot {
+    pub position: Vec3A,
+    /// The linear part of to_world⁻¹: world directions into the light's frame.
+    pub to_local: Mat3A,
+    pub intensity: Vec3,
+    /// Radians.
+    pub cutoff_angle: f32,
+    pub beam_width: f32,
+}
+
+impl Spot {
+    /// The falloff toward world direction `d` leaving the light.
+    pub fn falloff(&self, d: Vec3A) -> f32 {
+        let cos_theta = (self.to_local * d).normalize_or_zero().z;
+        if cos_theta <= self.cutoff_angle.cos() {
+            0.0
+        } else if cos_theta >= self.beam_width.cos() {
+            1.0
+        } else {
+            (self.cutoff_angle - cos_theta.clamp(-1.0, 1.0).acos())
+                / (self.cutoff_angle - self.beam_width)
+        }
+    }
 }
 
 /// A sampled direction toward an emitter.
@@ -48,7 +81,10 @@ pub struct BSphere {
 
 impl Emitter {
     pub fn is_delta(&self) -> bool {
-        matches!(self, Emitter::Point { .. } | Emitter::Directional { .. })
+        matches!(
+            self,
+            Emitter::Point { .. } | Emitter::Spot(_) | Emitter::Directional { .. }
+        )
     }
 
     pub fn sample_direction(
@@ -120,6 +156,21 @@ impl Emitter {
                     p: *position,
                     pdf: 1.0,
                     weight: *intensity / dist2,
+                    delta: true,
+                })
+            }
+            Emitter::Spot(spot) => {
+                let v = spot.position - p_ref;
+                let dist2 = v.length_squared();
+                let falloff = spot.falloff(-v);
+                if dist2 == 0.0 || falloff <= 0.0 {
+                    return None;
+                }
+                Some(EmitterSample {
+                    d: v / dist2.sqrt(),
+                    p: spot.position,
+                    pdf: 1.0,
+                    weight: spot.intensity * (falloff / dist2),
                     delta: true,
                 })
             }
@@ -205,7 +256,41 @@ impl Emitter {
             }
             Emitter::Constant { .. } => 1.0 / (4.0 * PI),
             Emitter::EnvMap(m) => m.pdf(d),
-            Emitter::Point { .. } | Emitter::Directional { .. } => 0.0,
+            Emitter::Point { .. } | Emitter::Spot(_) | Emitter::Directional { .. } => 0.0,
         }
+    }
+}
+
+#[cfg(test)]
+mod spot_tests {
+    use super::*;
+
+    /// Full inside the beam, linear in angle to 0 at the cutoff, 0 outside and behind.
+    #[test]
+    fn spot_falloff_profile() {
+        let spot = Spot {
+            position: Vec3A::ZERO,
+            to_local: Mat3A::IDENTITY,
+            intensity: Vec3::ONE,
+            cutoff_angle: 30f32.to_radians(),
+            beam_width: 20f32.to_radians(),
+        };
+        let at = |deg: f32| {
+            let t = deg.to_radians();
+            spot.falloff(Vec3A::new(t.sin(), 0.0, t.cos()))
+        };
+        assert_eq!(at(0.0), 1.0);
+        assert_eq!(at(19.9), 1.0);
+        assert!((at(25.0) - 0.5).abs() < 1e-3, "{}", at(25.0));
+        assert!((at(27.5) - 0.25).abs() < 1e-3, "{}", at(27.5));
+        assert_eq!(at(30.1), 0.0);
+        assert_eq!(at(180.0), 0.0);
+        // The light's frame: a spot turned to shine along +x.
+        let turned = Spot {
+            to_local: Mat3A::from_rotation_y(-std::f32::consts::FRAC_PI_2),
+            ..spot
+        };
+        assert!((turned.falloff(Vec3A::X) - 1.0).abs() < 1e-6);
+        assert_eq!(turned.falloff(Vec3A::Z), 0.0);
     }
 }

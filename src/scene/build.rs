@@ -13,7 +13,7 @@ use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
 use crate::bsdf::dielectric::named_ior;
 use crate::bsdf::{Bsdf, Conductor, Dielectric, Plastic, Texture, ThinDielectric};
 use crate::emitter::envmap::EnvMap;
-use crate::emitter::{BSphere, Emitter};
+use crate::emitter::{BSphere, Emitter, Spot};
 use crate::error::{err_at, Result, SceneError};
 use crate::geometry::accel::Accel;
 use crate::geometry::mesh::{cube, read_obj, read_ply, TriangleMesh};
@@ -869,6 +869,34 @@ impl Builder<'_> {
                     intensity,
                 }
             }
+            ("spot", None) => {
+                let intensity = emissive(&p, "intensity")?;
+                if p.has("texture") {
+                    return Err(p.error(
+                        "a spot light's \"texture\" (a projected image) is not supported yet",
+                    ));
+                }
+                let cutoff = p.float("cutoff_angle", 20.0)?;
+                let beam = p.float("beam_width", cutoff * 0.75)?;
+                if !(cutoff > 0.0 && cutoff <= 180.0 && (0.0..=cutoff).contains(&beam)) {
+                    return Err(p.error(format!(
+                        "cutoff_angle {cutoff} and beam_width {beam} (degrees): need 0 < cutoff_angle <= 180 and 0 <= beam_width <= cutoff_angle"
+                    )));
+                }
+                let to_world = p.transform("to_world")?;
+                let linear = glam::DMat3::from_mat4(to_world);
+                if linear.determinant().abs() < 1e-12 {
+                    return Err(p.error("the spot light's to_world is singular"));
+                }
+                p.finish("intensity, cutoff_angle, beam_width, to_world")?;
+                Emitter::Spot(Spot {
+                    position: to_world.transform_point3(DVec3::ZERO).as_vec3().into(),
+                    to_local: glam::Mat3A::from(linear.inverse().as_mat3()),
+                    intensity,
+                    cutoff_angle: cutoff.to_radians() as f32,
+                    beam_width: beam.to_radians() as f32,
+                })
+            }
             ("constant", None) => {
                 let radiance = emissive(&p, "radiance")?;
                 if self.environment.is_some() {
@@ -911,7 +939,7 @@ impl Builder<'_> {
                 return Err(unsupported(
                     &p,
                     "emitter",
-                    "area, point, constant, envmap, directional",
+                    "area, point, spot, constant, envmap, directional",
                 ))
             }
         };
