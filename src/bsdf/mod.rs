@@ -74,10 +74,6 @@ impl Bsdf {
         }
     }
 
-    pub fn is_null(&self) -> bool {
-        matches!(self, Bsdf::Null)
-    }
-
     /// Whether some light passes straight through (Mitsuba's `BSDFFlags::Null` among the
     /// BSDF's flags): `null`, `thindielectric`.
     pub fn has_null_component(&self) -> bool {

@@ -26,6 +26,10 @@ pub struct Plastic {
     /// `None`: not given (1, and the sampling weight uses 1).
     pub specular_reflectance: Option<Vec3>,
     pub nonlinear: bool,
+    /// F_dr of the coating's inside, `fresnel_diffuse_reflectance(1/η)`.
+    fdr_int: f32,
+    /// w_s, the specular lobe's share of the sampling weight.
+    specular_weight: f32,
 }
 
 /// Diffuse Fresnel reflectance: the fraction of light arriving uniformly from a
@@ -43,12 +47,28 @@ pub fn fresnel_diffuse_reflectance(eta: f32) -> f32 {
 }
 
 impl Plastic {
+    /// The constants of the model (F_dr and w_s) computed once, as Mitsuba does in
+    /// `parameters_changed`, not per sample.
+    pub fn new(
+        eta: f32,
+        diffuse_reflectance: Texture,
+        specular_reflectance: Option<Vec3>,
+        nonlinear: bool,
+    ) -> Self {
+        let s_mean = specular_reflectance.map_or(1.0, |s| s.element_sum() / 3.0);
+        Plastic {
+            eta,
+            fdr_int: fresnel_diffuse_reflectance(1.0 / eta),
+            specular_weight: s_mean / (diffuse_reflectance.mean() + s_mean),
+            diffuse_reflectance,
+            specular_reflectance,
+            nonlinear,
+        }
+    }
+
     /// Probability of picking the specular lobe at incident cosine `cos_i`, and F(θ_i).
     fn specular_probability(&self, cos_i: f32) -> (f32, f32) {
-        let s_mean = self
-            .specular_reflectance
-            .map_or(1.0, |s| s.element_sum() / 3.0);
-        let w_s = s_mean / (self.diffuse_reflectance.mean() + s_mean);
+        let w_s = self.specular_weight;
         let f_i = fresnel(cos_i, self.eta).0;
         let (ps, pd) = (f_i * w_s, (1.0 - f_i) * (1.0 - w_s));
         (ps / (ps + pd), f_i)
@@ -57,7 +77,7 @@ impl Plastic {
     /// ρ' (1 − F_i)(1 − F_o) / η²: the diffuse lobe without its cos θ_o / π.
     fn diffuse(&self, uv: Vec2, f_i: f32, cos_o: f32) -> Vec3 {
         let rho = self.diffuse_reflectance.eval(uv);
-        let fdr_int = fresnel_diffuse_reflectance(1.0 / self.eta);
+        let fdr_int = self.fdr_int;
         let rho = if self.nonlinear {
             rho / (Vec3::ONE - rho * fdr_int)
         } else {
@@ -117,12 +137,12 @@ mod tests {
     use super::*;
 
     fn plastic(nonlinear: bool) -> Plastic {
-        Plastic {
-            eta: 1.9,
-            diffuse_reflectance: Texture::Constant(Vec3::new(0.94, 0.271, 0.361)),
-            specular_reflectance: None,
+        Plastic::new(
+            1.9,
+            Texture::Constant(Vec3::new(0.94, 0.271, 0.361)),
+            None,
             nonlinear,
-        }
+        )
     }
 
     /// The fits against the integral they approximate:
@@ -182,10 +202,7 @@ mod tests {
     /// the directional albedo by Monte Carlo is 1. The back side reflects nothing.
     #[test]
     fn white_plastic_does_not_create_energy() {
-        let b = Plastic {
-            diffuse_reflectance: Texture::Constant(Vec3::ONE),
-            ..plastic(false)
-        };
+        let b = Plastic::new(1.9, Texture::Constant(Vec3::ONE), None, false);
         let mut rng = crate::integrator::sampler::Pcg32::for_pixel(1, 2);
         for cos in [0.2f32, 0.6, 1.0] {
             let wi = Vec3A::new((1.0 - cos * cos).sqrt(), 0.0, cos);

@@ -41,15 +41,36 @@ pub struct Spot {
     /// Radians.
     pub cutoff_angle: f32,
     pub beam_width: f32,
+    cos_cutoff: f32,
+    cos_beam: f32,
 }
 
 impl Spot {
+    /// Angles in radians; their cosines are kept for the falloff test.
+    pub fn new(
+        position: Vec3A,
+        to_local: Mat3A,
+        intensity: Vec3,
+        cutoff_angle: f32,
+        beam_width: f32,
+    ) -> Self {
+        Spot {
+            position,
+            to_local,
+            intensity,
+            cutoff_angle,
+            beam_width,
+            cos_cutoff: cutoff_angle.cos(),
+            cos_beam: beam_width.cos(),
+        }
+    }
+
     /// The falloff toward world direction `d` leaving the light.
     pub fn falloff(&self, d: Vec3A) -> f32 {
         let cos_theta = (self.to_local * d).normalize_or_zero().z;
-        if cos_theta <= self.cutoff_angle.cos() {
+        if cos_theta <= self.cos_cutoff {
             0.0
-        } else if cos_theta >= self.beam_width.cos() {
+        } else if cos_theta >= self.cos_beam {
             1.0
         } else {
             (self.cutoff_angle - cos_theta.clamp(-1.0, 1.0).acos())
@@ -268,13 +289,13 @@ mod spot_tests {
     /// Full inside the beam, linear in angle to 0 at the cutoff, 0 outside and behind.
     #[test]
     fn spot_falloff_profile() {
-        let spot = Spot {
-            position: Vec3A::ZERO,
-            to_local: Mat3A::IDENTITY,
-            intensity: Vec3::ONE,
-            cutoff_angle: 30f32.to_radians(),
-            beam_width: 20f32.to_radians(),
-        };
+        let spot = Spot::new(
+            Vec3A::ZERO,
+            Mat3A::IDENTITY,
+            Vec3::ONE,
+            30f32.to_radians(),
+            20f32.to_radians(),
+        );
         let at = |deg: f32| {
             let t = deg.to_radians();
             spot.falloff(Vec3A::new(t.sin(), 0.0, t.cos()))
@@ -286,10 +307,13 @@ mod spot_tests {
         assert_eq!(at(30.1), 0.0);
         assert_eq!(at(180.0), 0.0);
         // The light's frame: a spot turned to shine along +x.
-        let turned = Spot {
-            to_local: Mat3A::from_rotation_y(-std::f32::consts::FRAC_PI_2),
-            ..spot
-        };
+        let turned = Spot::new(
+            Vec3A::ZERO,
+            Mat3A::from_rotation_y(-std::f32::consts::FRAC_PI_2),
+            Vec3::ONE,
+            30f32.to_radians(),
+            20f32.to_radians(),
+        );
         assert!((turned.falloff(Vec3A::X) - 1.0).abs() < 1e-6);
         assert_eq!(turned.falloff(Vec3A::Z), 0.0);
     }

@@ -740,12 +740,12 @@ impl Builder<'_> {
                 };
                 let nonlinear = p.bool("nonlinear", false)?;
                 p.finish("int_ior, ext_ior, diffuse_reflectance, specular_reflectance, nonlinear")?;
-                Bsdf::Plastic(Plastic {
-                    eta: (int_ior / ext_ior) as f32,
+                Bsdf::Plastic(Plastic::new(
+                    (int_ior / ext_ior) as f32,
                     diffuse_reflectance,
                     specular_reflectance,
                     nonlinear,
-                })
+                ))
             }
             "twosided" => {
                 let nested = p.children_of(ObjectKind::Bsdf);
@@ -889,13 +889,13 @@ impl Builder<'_> {
                     return Err(p.error("the spot light's to_world is singular"));
                 }
                 p.finish("intensity, cutoff_angle, beam_width, to_world")?;
-                Emitter::Spot(Spot {
-                    position: to_world.transform_point3(DVec3::ZERO).as_vec3().into(),
-                    to_local: glam::Mat3A::from(linear.inverse().as_mat3()),
+                Emitter::Spot(Spot::new(
+                    to_world.transform_point3(DVec3::ZERO).as_vec3().into(),
+                    glam::Mat3A::from(linear.inverse().as_mat3()),
                     intensity,
-                    cutoff_angle: cutoff.to_radians() as f32,
-                    beam_width: beam.to_radians() as f32,
-                })
+                    cutoff.to_radians() as f32,
+                    beam.to_radians() as f32,
+                ))
             }
             ("constant", None) => {
                 let radiance = emissive(&p, "radiance")?;
