@@ -323,3 +323,19 @@ fn corrupt_serialized_mesh() {
         &["corrupt.serialized", "truncated or corrupt", "re-export"],
     );
 }
+
+/// A sampled spectrum must list wavelengths in increasing order…
+#[test]
+fn spectrum_wavelengths_out_of_order() {
+    expect_error(
+        "spectrum_decreasing.xml",
+        8,
+        &["sampled spectrum", "500 follows 600"],
+    );
+}
+
+/// …and nonnegative values.
+#[test]
+fn spectrum_negative_value() {
+    expect_error("spectrum_negative.xml", 7, &["sampled spectrum", "700:-2", ">= 0"]);
+}

@@ -52,7 +52,7 @@ const EXPECTED: &[(&str, Status)] = &[
     ),
     (
         "mdata_homo_emitter_inside_medium",
-        Refused("sampled spectrum"),
+        Refused("unsupported bsdf plugin \"roughplastic\""),
     ),
     (
         "mdata_homo_null_envmap",
@@ -98,7 +98,16 @@ const EXPECTED: &[(&str, Status)] = &[
         "mdata_surf_area_light_volpath",
         Refused("unsupported bsdf plugin \"roughplastic\""),
     ),
-    ("mdata_cbox", Refused("sampled spectrum")),
+    (
+        "mdata_cbox",
+        Matches {
+            // Sampled spectra: reflectances and the light's radiance.
+            reference: "corpus_mdata_cbox",
+            params: &[("res", "64")],
+            chunks: 8,
+            spp: 64,
+        },
+    ),
     (
         "mdata_matpreview",
         Matches {

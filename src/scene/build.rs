@@ -21,6 +21,7 @@ use crate::geometry::serialized::read_serialized;
 use crate::geometry::shape::{Geometry, Planar, Sphere};
 use crate::geometry::RAY_EPSILON;
 use crate::medium::{HomogeneousMedium, Phase};
+use crate::scene::spectrum::SpectrumUse;
 use crate::xml::description::{ObjId, ObjectKind, SceneDescription, Value};
 use crate::xml::load::resolve_path;
 
@@ -175,14 +176,15 @@ fn to_mat4(m: DMat4) -> Mat4 {
 }
 
 /// A color for an emitter: float and rgb as given, a constant spectrum as Mitsuba's RGB
-/// mode converts it (see `UNIFORM_SPECTRUM_RGB`).
+/// mode converts it (see `UNIFORM_SPECTRUM_RGB`), a sampled one without the D65 weight
+/// and unclipped above (`SpectrumUse::Emission`).
 fn emissive(p: &Props, name: &str) -> Result<Vec3> {
     let is_spectrum = p
         .obj
         .props
         .iter()
         .any(|q| q.name == name && matches!(q.value, Value::Spectrum(_)));
-    let c = p.color_nonneg(name, Vec3::ONE)?;
+    let c = p.color_nonneg_as(name, Vec3::ONE, SpectrumUse::Emission)?;
     Ok(if is_spectrum {
         c * UNIFORM_SPECTRUM_RGB
     } else {
@@ -719,8 +721,8 @@ impl Builder<'_> {
                 if material != "none" {
                     return Err(p.error("give either eta and k, or material, not both"));
                 }
-                let eta = p.color_nonneg("eta", Vec3::ZERO)?;
-                let k = p.color_nonneg("k", Vec3::ONE)?;
+                let eta = p.color_nonneg_as("eta", Vec3::ZERO, SpectrumUse::Unbounded)?;
+                let k = p.color_nonneg_as("k", Vec3::ONE, SpectrumUse::Unbounded)?;
                 p.finish("material, eta, k, specular_reflectance")?;
                 Bsdf::Conductor(Conductor {
                     eta,
@@ -957,11 +959,12 @@ impl Builder<'_> {
                 "heterogeneous (grid) media are out of scope; mediareg supports homogeneous media",
             ));
         }
-        let albedo = p.color_nonneg("albedo", Vec3::splat(0.75))?;
+        // Both are Mitsuba volumes (`constvolume`), whose values are unbounded textures.
+        let albedo = p.color_nonneg_as("albedo", Vec3::splat(0.75), SpectrumUse::Unbounded)?;
         if albedo.max_element() > 1.0 {
             return Err(p.error(format!("albedo {albedo} must be in [0, 1]")));
         }
-        let sigma_t = p.color_nonneg("sigma_t", Vec3::ONE)?;
+        let sigma_t = p.color_nonneg_as("sigma_t", Vec3::ONE, SpectrumUse::Unbounded)?;
         // Mitsuba 3 turns an `<rgb>` sigma_t into a bounded sRGB texture, which refuses
         // components above 1; give the same file the same meaning (an error).
         if let Some((Value::Rgb(c), loc)) = p.get("sigma_t") {

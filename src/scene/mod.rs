@@ -5,6 +5,7 @@ pub mod camera;
 pub mod cost;
 pub mod film;
 pub mod props;
+pub mod spectrum;
 
 use glam::{Vec2, Vec3A};
 

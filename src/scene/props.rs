@@ -7,6 +7,7 @@ use std::cell::RefCell;
 
 use glam::{DMat4, DVec3, Vec3};
 
+use super::spectrum::{spectrum_to_srgb, SpectrumUse};
 use crate::error::{err_at, Loc, Result, SceneError};
 use crate::xml::description::{Child, ObjId, Object, ObjectKind, SceneDescription, Value};
 
@@ -144,9 +145,15 @@ impl<'a> Props<'a> {
         }
     }
 
-    /// A color: `<float>`, `<rgb>` or constant `<spectrum>` (all the same in RGB mode
-    /// for reflectances and media). Returns the value and where it was given.
+    /// A reflectance-like color: `<float>`, `<rgb>`, a constant `<spectrum>` (all the
+    /// same in RGB mode) or a sampled spectrum (converted as a reflectance). Returns the
+    /// value and where it was given.
     pub fn color_opt(&self, name: &str) -> Result<Option<(Vec3, Loc)>> {
+        self.color_opt_as(name, SpectrumUse::Reflectance)
+    }
+
+    /// A color whose sampled spectrum, if it is one, converts to RGB as `usage` says.
+    pub fn color_opt_as(&self, name: &str, usage: SpectrumUse) -> Result<Option<(Vec3, Loc)>> {
         if let Some(c) = self.child_named(name) {
             let o = self.desc.object(c.object);
             return err_at(
@@ -166,13 +173,22 @@ impl<'a> Props<'a> {
             }
             Some((Value::Integer(v), loc)) => Ok(Some((Vec3::splat(*v as f32), loc.clone()))),
             Some((Value::Rgb(v), loc)) => Ok(Some((v.as_vec3(), loc.clone()))),
+            Some((Value::SampledSpectrum(s), loc)) => {
+                Ok(Some((spectrum_to_srgb(s, usage), loc.clone())))
+            }
             Some((v, loc)) => self.wrong_type(name, loc, v, "a <float>, <rgb> or <spectrum>"),
         }
     }
 
-    /// A color that must be finite and nonnegative.
+    /// A reflectance-like color that must be finite and nonnegative.
     pub fn color_nonneg(&self, name: &str, default: Vec3) -> Result<Vec3> {
-        match self.color_opt(name)? {
+        self.color_nonneg_as(name, default, SpectrumUse::Reflectance)
+    }
+
+    /// A color that must be finite and nonnegative; a sampled spectrum converts as
+    /// `usage` says.
+    pub fn color_nonneg_as(&self, name: &str, default: Vec3, usage: SpectrumUse) -> Result<Vec3> {
+        match self.color_opt_as(name, usage)? {
             None => Ok(default),
             Some((c, loc)) => {
                 if !c.is_finite() || c.min_element() < 0.0 {

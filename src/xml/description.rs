@@ -80,6 +80,9 @@ pub enum Value {
     Rgb(DVec3),
     /// A constant `<spectrum value="v"/>`.
     Spectrum(f64),
+    /// A sampled `<spectrum value="λ₁:v₁, λ₂:v₂, …"/>`: (wavelength in nm, value) pairs,
+    /// wavelengths strictly increasing.
+    SampledSpectrum(Vec<(f64, f64)>),
     Transform(DMat4),
 }
 
@@ -93,7 +96,7 @@ impl Value {
             Value::Point(_) => "point",
             Value::Vector(_) => "vector",
             Value::Rgb(_) => "rgb",
-            Value::Spectrum(_) => "spectrum",
+            Value::Spectrum(_) | Value::SampledSpectrum(_) => "spectrum",
             Value::Transform(_) => "transform",
         }
     }

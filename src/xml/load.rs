@@ -501,20 +501,13 @@ impl Loader {
                 }
                 let v = value_attr()?;
                 if v.contains(':') {
-                    return Err(SceneError::at(
-                        loc,
-                        format!(
-                            "sampled spectrum \"{v}\" is not supported: mediareg renders in RGB"
-                        ),
-                    )
-                    .with_hint(
-                        "use a constant <spectrum value=\"v\"/> or <rgb value=\"r, g, b\"/>",
-                    ));
-                }
-                let list = parse_list(&v, loc)?;
-                match list.as_slice() {
-                    [x] => Value::Spectrum(*x),
-                    _ => return err_at(loc, format!("could not parse spectrum value \"{v}\"")),
+                    Value::SampledSpectrum(parse_sampled_spectrum(&v, loc)?)
+                } else {
+                    let list = parse_list(&v, loc)?;
+                    match list.as_slice() {
+                        [x] => Value::Spectrum(*x),
+                        _ => return err_at(loc, format!("could not parse spectrum value \"{v}\"")),
+                    }
                 }
             }
             "transform" => {
@@ -662,6 +655,44 @@ pub fn parse_float(s: &str, loc: &Loc) -> Result<f64> {
 }
 
 /// Numbers separated by commas and/or whitespace, as Mitsuba's tokenizer accepts.
+/// `"λ₁:v₁, λ₂:v₂, …"`: at least two pairs, wavelengths (nm) strictly increasing, values
+/// finite and nonnegative (Mitsuba turns the list into RGB by integrating it; see
+/// `scene::spectrum`).
+fn parse_sampled_spectrum(s: &str, loc: &Loc) -> Result<Vec<(f64, f64)>> {
+    let mut pairs = Vec::new();
+    for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
+        let Some((w, v)) = item.split_once(':') else {
+            return err_at(
+                loc,
+                format!("sampled spectrum \"{s}\": \"{item}\" is not a wavelength:value pair"),
+            );
+        };
+        let (w, v) = (parse_float(w.trim(), loc)?, parse_float(v.trim(), loc)?);
+        if !w.is_finite() || w <= 0.0 || !v.is_finite() || v < 0.0 {
+            return err_at(
+                loc,
+                format!("sampled spectrum: \"{item}\" needs a positive wavelength (nm) and a finite value >= 0"),
+            );
+        }
+        if let Some(&(prev, _)) = pairs.last() {
+            if w <= prev {
+                return err_at(
+                    loc,
+                    format!("sampled spectrum: wavelengths must increase, but {w} follows {prev}"),
+                );
+            }
+        }
+        pairs.push((w, v));
+    }
+    if pairs.len() < 2 {
+        return err_at(
+            loc,
+            format!("sampled spectrum \"{s}\" needs at least two wavelength:value pairs"),
+        );
+    }
+    Ok(pairs)
+}
+
 fn parse_list(s: &str, loc: &Loc) -> Result<Vec<f64>> {
     s.split(|c: char| c == ',' || c.is_whitespace())
         .filter(|t| !t.is_empty())
