@@ -13,6 +13,9 @@ Writes, into --out (default: reference/):
 Each chunk renders spp/chunks samples per pixel with its own seed; chunks are
 independent, so their spread estimates the variance of the mean.
 
+With --crop X,Y,W,H only that window of the film is rendered (the JSON records it, and
+the tests render the same window).
+
 With --derivative NAME --step H (and -D NAME=VALUE), each chunk is instead the
 derivative of the image with respect to the scene parameter NAME at VALUE, by
 Richardson-extrapolated central differences (error O(H^4)):
@@ -123,6 +126,8 @@ def main():
     ap.add_argument("--name", default=None, help="output name (default: the scene's stem)")
     ap.add_argument("--derivative", default=None, help="differentiate with respect to this -D parameter")
     ap.add_argument("--step", type=float, default=0.01, help="finite-difference step H for --derivative")
+    ap.add_argument("--crop", default=None, metavar="X,Y,W,H",
+                    help="render only this window of the film (as mediareg render --crop)")
     args = ap.parse_args()
     if args.chunks < 2 or args.chunks % 2 or args.spp % args.chunks:
         sys.exit("--chunks must be even and >= 2, and divide --spp")
@@ -148,6 +153,18 @@ def main():
         weights = [(dv, w / (6 * h)) for dv, w in [(h / 2, 8), (-h / 2, -8), (h, -1), (-h, 1)]]
         scenes = [(w, mi.load_file(args.scene, **{**params, args.derivative: repr(v + dv)}))
                   for dv, w in weights]
+
+    crop = None
+    if args.crop:
+        crop = [int(v) for v in args.crop.split(",")]
+        if len(crop) != 4:
+            sys.exit("--crop needs X,Y,W,H")
+        for _, sc in scenes:
+            # The film's crop window is a scene parameter in Mitsuba 3.
+            p = mi.traverse(sc.sensors()[0])
+            p["film.crop_offset"] = mi.ScalarPoint2u(crop[0], crop[1])
+            p["film.crop_size"] = mi.ScalarVector2u(crop[2], crop[3])
+            p.update()
 
     spp_chunk = args.spp // args.chunks
     chunks = []
@@ -191,6 +208,7 @@ def main():
         "search": args.search,
         "width": mean.shape[1],
         "height": mean.shape[0],
+        **({"crop": crop} if crop else {}),
         "sha256": {k: sha256(v) for k, v in sorted(files.items())},
         "made_by": "scripts/mitsuba_reference.py",
         **({"derivative": {"param": args.derivative, "step": args.step,

@@ -50,6 +50,15 @@ struct SceneArgs {
     /// Random seed (overrides the sampler's seed).
     #[arg(long)]
     seed: Option<u64>,
+    /// Render only this window of the film: X,Y,W,H in pixels (overrides the film's
+    /// crop_offset_x/y, crop_width/height)
+    #[arg(long, value_name = "X,Y,W,H", value_parser = parse_crop)]
+    crop: Option<[usize; 4]>,
+    /// Read files older than 2.0 exactly as Mitsuba 3 does: refuse the Mitsuba 0.6
+    /// readings mediareg otherwise makes (sigmaS/sigmaA media, density, index-matched
+    /// medium boundaries without a bsdf)
+    #[arg(long)]
+    strict_v3: bool,
     /// Number of render threads (default: all cores).
     #[arg(short = 't', long = "threads")]
     threads: Option<usize>,
@@ -309,6 +318,21 @@ fn set_threads(threads: Option<usize>) -> Result<()> {
     Ok(())
 }
 
+/// `--crop X,Y,W,H`: four non-negative integers.
+fn parse_crop(s: &str) -> std::result::Result<[usize; 4], String> {
+    let v: Vec<usize> = s
+        .split(',')
+        .map(|t| t.trim().parse::<usize>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| format!("\"{s}\": {e}; expected X,Y,W,H (pixels)"))?;
+    <[usize; 4]>::try_from(v).map_err(|v| {
+        format!(
+            "\"{s}\" has {} numbers; expected four: X,Y,W,H (pixels)",
+            v.len()
+        )
+    })
+}
+
 /// Loads the scene and checks where the output goes; returns the scene and OUT.exr.
 fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
     let params = parse_defines(&args.define)?;
@@ -319,10 +343,12 @@ fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
     let opts = xml::LoadOptions {
         params,
         search_dirs: args.search.clone(),
+        strict_v3: args.strict_v3,
     };
     let overrides = BuildOverrides {
         spp: args.spp,
         seed: args.seed,
+        crop: args.crop,
     };
     let scene = load_scene(&args.scene, &opts, &overrides).map_err(|e| anyhow!("{e}"))?;
 

@@ -337,5 +337,38 @@ fn spectrum_wavelengths_out_of_order() {
 /// …and nonnegative values.
 #[test]
 fn spectrum_negative_value() {
-    expect_error("spectrum_negative.xml", 7, &["sampled spectrum", "700:-2", ">= 0"]);
+    expect_error(
+        "spectrum_negative.xml",
+        7,
+        &["sampled spectrum", "700:-2", ">= 0"],
+    );
+}
+
+/// Anisotropic roughness is refused (its orientation follows a tangent mediareg does
+/// not track), with the remedy.
+#[test]
+fn anisotropic_roughness_refused() {
+    expect_error(
+        "anisotropic_roughness.xml",
+        7,
+        &["anisotropic roughness", "alpha_u 0.3", "give one alpha"],
+    );
+}
+
+#[test]
+fn unknown_microfacet_distribution() {
+    expect_error(
+        "unknown_distribution.xml",
+        7,
+        &["distribution \"phong\"", "beckmann", "ggx"],
+    );
+}
+
+#[test]
+fn negative_roughness() {
+    expect_error(
+        "negative_alpha.xml",
+        8,
+        &["\"alpha\" = -0.2", "out of range"],
+    );
 }

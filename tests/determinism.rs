@@ -10,12 +10,18 @@ fn render_with_threads(threads: usize, seed: u64) -> Vec<[f32; 3]> {
 }
 
 fn render_scene_with_threads(name: &str, threads: usize, seed: u64) -> Vec<[f32; 3]> {
+    render_window(name, threads, seed, None)
+}
+
+/// Renders mitsuba_scenes/NAME.xml at 48² and 16 spp, or the crop window `crop` of it.
+fn render_window(name: &str, threads: usize, seed: u64, crop: Option<[usize; 4]>) -> Vec<[f32; 3]> {
     let scene = mediareg::load_scene(
         &root().join(format!("mitsuba_scenes/{name}.xml")),
         &options(&[("res", "48")]),
         &BuildOverrides {
             spp: Some(16),
             seed: Some(seed),
+            crop,
         },
     )
     .unwrap_or_else(|e| panic!("{e}"));
@@ -58,5 +64,26 @@ fn volpath_same_seed_is_bit_identical_across_thread_counts() {
                 .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)),
             "{name}: 1 vs 2 threads differ"
         );
+    }
+}
+
+/// A crop window (`--crop`) renders the same pixels as the full film (each pixel's
+/// random numbers depend on its place in the full film), with a box filter bit for bit.
+#[test]
+fn crop_window_is_the_same_window_of_the_full_render() {
+    let full = render_window("medium_cube", 2, 5, None);
+    let [x, y, w, h] = [10, 7, 20, 16];
+    let crop = render_window("medium_cube", 2, 5, Some([x, y, w, h]));
+    assert_eq!(crop.len(), w * h);
+    for r in 0..h {
+        for c in 0..w {
+            assert_eq!(
+                crop[r * w + c].map(f32::to_bits),
+                full[(y + r) * 48 + x + c].map(f32::to_bits),
+                "pixel ({}, {})",
+                x + c,
+                y + r
+            );
+        }
     }
 }

@@ -199,6 +199,7 @@ fn exercise_scene(path: &Path) {
         &BuildOverrides {
             spp: Some(1),
             seed: Some(1),
+            crop: None,
         },
     ) else {
         return;

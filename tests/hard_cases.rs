@@ -128,8 +128,8 @@ fn load_seeded(path: &std::path::Path, seed: u64) -> Scene {
         path,
         &common::options_in(&[], vec![]),
         &BuildOverrides {
-            spp: None,
             seed: Some(seed),
+            ..Default::default()
         },
     )
     .unwrap_or_else(|e| panic!("{}: {e}", path.display()))

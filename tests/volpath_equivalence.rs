@@ -75,6 +75,29 @@ fn thindielectric_comparison_detects_int_ior_off() {
     assert!(!c.passed, "int_ior 1.7 for 1.5 went undetected: {c}");
 }
 
+/// `roughdielectric`: a rough sphere bounding a medium (lit only through its
+/// transmission lobe) and a GGX rough block.
+#[test]
+fn roughdielectric_matches_mitsuba() {
+    let c = check("roughdielectric", &[], 51);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: the sphere at alpha 0.25 instead of 0.15 must fail.
+#[test]
+fn roughdielectric_comparison_detects_alpha_off() {
+    let c = check("roughdielectric", &[("alpha", "0.25")], 52);
+    assert!(!c.passed, "alpha 0.25 for 0.15 went undetected: {c}");
+}
+
+/// Power: the block at int_ior 1.5 instead of 1.33 must fail (1.4 failed by 17 block
+/// outliers against 12 allowed: too close to rely on).
+#[test]
+fn roughdielectric_comparison_detects_int_ior_off() {
+    let c = check("roughdielectric", &[("int_ior", "1.5")], 53);
+    assert!(!c.passed, "int_ior 1.5 for 1.33 went undetected: {c}");
+}
+
 /// max_depth 3, rr_depth 1, hide_emitters, a directional light and a hidden sky.
 #[test]
 fn max_depth_directional_matches_mitsuba() {

@@ -236,13 +236,17 @@ fn property_types() {
         .unwrap_err();
         assert!(e.contains("scene.xml:1:"), "{tag}: {e}");
     }
-    let e = load(
+    // A sampled spectrum is kept as its (wavelength, value) pairs (converted at build).
+    let d = load(
         "sampled",
         r#"<shape type="sphere"><spectrum name="x" value="400:1, 700:2"/></shape>"#,
         &[],
     )
-    .unwrap_err();
-    assert!(e.contains("not supported"), "{e}");
+    .unwrap();
+    assert_eq!(
+        prop(&d, ObjectKind::Shape, "x"),
+        &Value::SampledSpectrum(vec![(400.0, 1.0), (700.0, 2.0)])
+    );
 }
 
 #[test]
@@ -370,6 +374,7 @@ fn sampler_and_integrator() {
         &BuildOverrides {
             spp: Some(2),
             seed: Some(9),
+            crop: None,
         },
     )
     .unwrap();

@@ -3,6 +3,7 @@
 
 use glam::{Vec3, Vec3A};
 
+use super::microfacet::{reflect, refract, Microfacet};
 use super::BsdfSample;
 
 #[derive(Clone, Debug)]
@@ -150,6 +151,116 @@ impl ThinDielectric {
             delta: true,
             null: !reflect,
         })
+    }
+}
+
+/// Mitsuba 3's `roughdielectric` (`src/bsdfs/roughdielectric.cpp`; Walter et al. 2007):
+/// a rough interface of relative index η seen from both sides. With m the half vector
+/// (m ∝ wi + wo for reflection, wi + η wo for transmission, η the index ratio of the
+/// side wi is on), D, G and F as in `microfacet` and `fresnel`:
+///
+///   reflection:   f · |cos θ_o| = F D G / (4 |cos θ_i|)
+///   transmission: f · |cos θ_o| = (1 − F) D G |wi·m| |wo·m| / (|cos θ_i| (wi·m + η wo·m)²)
+///
+/// (the η² of the transmission and the 1/η² of radiance's solid-angle compression
+/// cancel). Sampling: a visible normal, then reflection with probability F, with the
+/// Jacobians dm/dwo = 1/(4 wo·m) and η² |wo·m| / (wi·m + η wo·m)².
+#[derive(Clone, Debug)]
+pub struct RoughDielectric {
+    /// int_ior / ext_ior
+    pub eta: f32,
+    pub distr: Microfacet,
+    pub specular_reflectance: Vec3,
+    pub specular_transmittance: Vec3,
+}
+
+impl RoughDielectric {
+    pub fn sample(&self, wi: Vec3A, s1: f32, s2: glam::Vec2) -> Option<BsdfSample> {
+        if wi.z == 0.0 {
+            return None;
+        }
+        // Sample the normals visible from wi's side, mirrored to the upper hemisphere.
+        let (m, pdf_m) = self.distr.sample(wi * wi.z.signum(), s2);
+        if pdf_m.is_nan() || pdf_m <= 0.0 {
+            return None;
+        }
+        let (f, cos_theta_t, eta_it, eta_ti) = fresnel(wi.dot(m), self.eta);
+        let (wo, pdf, weight, eta, dwh_dwo) = if s1 <= f {
+            let wo = reflect(wi, m);
+            (
+                wo,
+                pdf_m * f,
+                self.specular_reflectance,
+                1.0,
+                1.0 / (4.0 * wo.dot(m)),
+            )
+        } else {
+            let wo = refract(wi, m, cos_theta_t, eta_ti);
+            let denom = wi.dot(m) + eta_it * wo.dot(m);
+            (
+                wo,
+                pdf_m * (1.0 - f),
+                // Radiance is scaled by η_ti² for the solid-angle compression.
+                self.specular_transmittance * (eta_ti * eta_ti),
+                eta_it,
+                eta_it * eta_it * wo.dot(m) / (denom * denom),
+            )
+        };
+        let weight = weight * self.distr.smith_g1(wo, m);
+        let pdf = pdf * dwh_dwo.abs();
+        if !(pdf > 0.0 && pdf.is_finite()) || weight == Vec3::ZERO {
+            return None;
+        }
+        Some(BsdfSample {
+            wo,
+            pdf,
+            weight,
+            eta,
+            delta: false,
+            null: false,
+        })
+    }
+
+    pub fn eval_pdf(&self, wi: Vec3A, wo: Vec3A) -> (Vec3, f32) {
+        let (cos_i, cos_o) = (wi.z, wo.z);
+        if cos_i == 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let reflect = cos_i * cos_o > 0.0;
+        let eta = if cos_i > 0.0 {
+            self.eta
+        } else {
+            1.0 / self.eta
+        };
+        let m = (wi + wo * if reflect { 1.0 } else { eta }).normalize();
+        let m = m * m.z.signum();
+        let (dot_wi_m, dot_wo_m) = (wi.dot(m), wo.dot(m));
+        // The micro- and macro-surface must agree on each direction's side.
+        if !(dot_wi_m * cos_i > 0.0 && dot_wo_m * cos_o > 0.0) {
+            return (Vec3::ZERO, 0.0);
+        }
+        let d = self.distr.eval(m);
+        let f = fresnel(dot_wi_m, self.eta).0;
+        let g = self.distr.g(wi, wo, m);
+        let pdf_m = self.distr.pdf(wi * cos_i.signum(), m);
+        let (value, pdf) = if reflect {
+            (
+                self.specular_reflectance * (f * d * g / (4.0 * cos_i.abs())),
+                pdf_m * f / (4.0 * dot_wo_m).abs(),
+            )
+        } else {
+            let denom = dot_wi_m + eta * dot_wo_m;
+            let denom2 = denom * denom;
+            let v = ((1.0 - f) * d * g * dot_wi_m * dot_wo_m / (cos_i * denom2)).abs();
+            (
+                self.specular_transmittance * v,
+                pdf_m * (1.0 - f) * (eta * eta * dot_wo_m / denom2).abs(),
+            )
+        };
+        if !(pdf.is_finite() && value.is_finite()) {
+            return (Vec3::ZERO, 0.0);
+        }
+        (value, pdf)
     }
 }
 

@@ -128,6 +128,9 @@ pub struct ReferenceMeta {
     pub params: BTreeMap<String, String>,
     pub width: usize,
     pub height: usize,
+    /// The crop window `[x, y, w, h]` of the film the reference covers (`--crop`).
+    #[serde(default)]
+    pub crop: Option<[usize; 4]>,
     pub sha256: BTreeMap<String, String>,
 }
 
@@ -267,6 +270,7 @@ pub fn load_with_reference(
     let load = xml::LoadOptions {
         params: params.to_vec(),
         search_dirs: opts.search.clone(),
+        ..Default::default()
     };
     let desc = xml::load_file(&xml_path, &load).map_err(|e| anyhow!("{e}"))?;
     let reference = Reference::load(&opts.reference_dir, reference, &xml_path, &load, &desc)?;

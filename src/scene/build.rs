@@ -11,7 +11,11 @@ use super::film::{Film, Rfilter};
 use super::props::Props;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
 use crate::bsdf::dielectric::named_ior;
-use crate::bsdf::{Bsdf, Conductor, Dielectric, Plastic, Texture, ThinDielectric};
+use crate::bsdf::microfacet::{Microfacet, MicrofacetType};
+use crate::bsdf::{
+    Bsdf, Conductor, Dielectric, Plastic, RoughConductor, RoughDielectric, RoughPlastic, Texture,
+    ThinDielectric,
+};
 use crate::emitter::envmap::EnvMap;
 use crate::emitter::{BSphere, Emitter, Spot};
 use crate::error::{err_at, Result, SceneError};
@@ -56,6 +60,9 @@ struct Builder<'a> {
 pub struct BuildOverrides {
     pub spp: Option<u32>,
     pub seed: Option<u64>,
+    /// A crop window `[x, y, width, height]` of the full film, replacing the file's
+    /// (Mitsuba's `crop_offset_x/y`, `crop_width/height`).
+    pub crop: Option<[usize; 4]>,
 }
 
 pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Result<Scene> {
@@ -69,7 +76,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         shapes: Vec::new(),
         emitters: Vec::new(),
         environment: None,
-        warnings: Vec::new(),
+        warnings: desc.notes.clone(),
     };
     let root = Props::new(desc, desc.root);
 
@@ -112,7 +119,21 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         [s] => s.object,
         [_, second, ..] => return err_at(&second.loc, "only one <sensor> per scene is supported"),
     };
-    let (camera, camera_medium, film, spp, seed) = b.sensor(sensor)?;
+    let (camera, camera_medium, mut film, spp, seed) = b.sensor(sensor)?;
+    if let Some([x, y, w, h]) = overrides.crop {
+        if w == 0 || h == 0 || x + w > film.width || y + h > film.height {
+            return Err(SceneError::new(
+                None,
+                format!(
+                    "--crop {x},{y},{w},{h} does not fit the {} x {} film",
+                    film.width, film.height
+                ),
+            )
+            .with_hint("give X,Y,W,H with W, H > 0 and X + W, Y + H within the film"));
+        }
+        film.crop_offset = (x, y);
+        film.crop_size = (w, h);
+    }
     // Top-level textures are used where a bsdf refers to them by id.
     root.children_of(ObjectKind::Texture);
     root.finish("integrator, sensor, shape, emitter, bsdf, medium, texture")?;
@@ -711,18 +732,7 @@ impl Builder<'_> {
             }
             "conductor" => {
                 let sr = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
-                let material = p.string("material", "none")?;
-                // Mitsuba: (eta, k) or "none" (η 0, κ 1: an ideal mirror), else a table.
-                if !p.has("eta") && material != "none" {
-                    return Err(p.error(format!(
-                        "conductor material \"{material}\": the named materials (spectral IOR tables) are not supported yet; give eta and k (<float> or <rgb>), or material \"none\""
-                    )));
-                }
-                if material != "none" {
-                    return Err(p.error("give either eta and k, or material, not both"));
-                }
-                let eta = p.color_nonneg_as("eta", Vec3::ZERO, SpectrumUse::Unbounded)?;
-                let k = p.color_nonneg_as("k", Vec3::ONE, SpectrumUse::Unbounded)?;
+                let (eta, k) = conductor_ior(&p)?;
                 p.finish("material, eta, k, specular_reflectance")?;
                 Bsdf::Conductor(Conductor {
                     eta,
@@ -730,9 +740,39 @@ impl Builder<'_> {
                     specular_reflectance: sr,
                 })
             }
-            "plastic" => {
-                let int_ior = ior(&p, "int_ior", "polypropylene")?;
-                let ext_ior = ior(&p, "ext_ior", "air")?;
+            "roughconductor" => {
+                let specular_reflectance = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
+                let (eta, k) = conductor_ior(&p)?;
+                let distr = microfacet(&p, true)?;
+                p.finish("material, eta, k, specular_reflectance, distribution, alpha, alpha_u, alpha_v, sample_visible")?;
+                Bsdf::RoughConductor(RoughConductor {
+                    distr,
+                    eta,
+                    k,
+                    specular_reflectance,
+                })
+            }
+            "roughdielectric" => {
+                let eta = relative_ior(&p, "bk7")?;
+                let specular_reflectance = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
+                let specular_transmittance = p.color_nonneg("specular_transmittance", Vec3::ONE)?;
+                let distr = microfacet(&p, true)?;
+                p.finish("int_ior, ext_ior, specular_reflectance, specular_transmittance, distribution, alpha, alpha_u, alpha_v, sample_visible")?;
+                Bsdf::RoughDielectric(RoughDielectric {
+                    eta,
+                    distr,
+                    specular_reflectance,
+                    specular_transmittance,
+                })
+            }
+            // The same coated-diffuse parameters; the rough one adds a microfacet coating.
+            "plastic" | "roughplastic" => {
+                let rough = p.obj.plugin == "roughplastic";
+                let eta = if rough {
+                    relative_ior(&p, "polypropylene")?
+                } else {
+                    (ior(&p, "int_ior", "polypropylene")? / ior(&p, "ext_ior", "air")?) as f32
+                };
                 let diffuse_reflectance =
                     self.reflectance(&p, "diffuse_reflectance", Vec3::splat(0.5))?;
                 let specular_reflectance = if p.has("specular_reflectance") {
@@ -741,13 +781,27 @@ impl Builder<'_> {
                     None
                 };
                 let nonlinear = p.bool("nonlinear", false)?;
-                p.finish("int_ior, ext_ior, diffuse_reflectance, specular_reflectance, nonlinear")?;
-                Bsdf::Plastic(Plastic::new(
-                    (int_ior / ext_ior) as f32,
-                    diffuse_reflectance,
-                    specular_reflectance,
-                    nonlinear,
-                ))
+                if rough {
+                    let distr = microfacet(&p, false)?;
+                    p.finish("int_ior, ext_ior, diffuse_reflectance, specular_reflectance, nonlinear, distribution, alpha, sample_visible")?;
+                    Bsdf::RoughPlastic(RoughPlastic::new(
+                        eta,
+                        distr,
+                        diffuse_reflectance,
+                        specular_reflectance,
+                        nonlinear,
+                    ))
+                } else {
+                    p.finish(
+                        "int_ior, ext_ior, diffuse_reflectance, specular_reflectance, nonlinear",
+                    )?;
+                    Bsdf::Plastic(Plastic::new(
+                        eta,
+                        diffuse_reflectance,
+                        specular_reflectance,
+                        nonlinear,
+                    ))
+                }
             }
             "twosided" => {
                 let nested = p.children_of(ObjectKind::Bsdf);
@@ -766,7 +820,7 @@ impl Builder<'_> {
                 return Err(unsupported(
                     &p,
                     "bsdf",
-                    "null, diffuse, dielectric, thindielectric, conductor, plastic, twosided",
+                    "null, diffuse, dielectric, thindielectric, conductor, plastic, roughdielectric, roughconductor, roughplastic, twosided",
                 ))
             }
         };
@@ -1030,6 +1084,88 @@ impl Builder<'_> {
         self.medium_ids.insert(id, i);
         Ok(i)
     }
+}
+
+/// A conductor's complex index η + iκ: `eta` and `k` (float, rgb or spectrum,
+/// unbounded), or `material` "none" (η 0, κ 1: an ideal mirror). Mitsuba's named
+/// materials (spectral tables) are refused.
+fn conductor_ior(p: &Props) -> Result<(Vec3, Vec3)> {
+    let material = p.string("material", "none")?;
+    if !p.has("eta") && material != "none" {
+        return Err(p.error(format!(
+            "conductor material \"{material}\": the named materials (spectral IOR tables) are not supported yet; give eta and k (<float> or <rgb>), or material \"none\""
+        )));
+    }
+    if material != "none" {
+        return Err(p.error("give either eta and k, or material, not both"));
+    }
+    let eta = p.color_nonneg_as("eta", Vec3::ZERO, SpectrumUse::Unbounded)?;
+    let k = p.color_nonneg_as("k", Vec3::ONE, SpectrumUse::Unbounded)?;
+    Ok((eta, k))
+}
+
+/// Mitsuba's microfacet parameters: `distribution` ("beckmann" or "ggx"; Beckmann by
+/// default), `alpha` (0.1) or both `alpha_u` and `alpha_v` (only where `anisotropic`, and
+/// then only equal: the tangent that orients anisotropy is not tracked),
+/// and `sample_visible` (true). mediareg always samples the visible normals; `false`
+/// only changes how Mitsuba samples, not what it computes, so it is read and noted.
+fn microfacet(p: &Props, anisotropic: bool) -> Result<Microfacet> {
+    let name = p.string("distribution", "beckmann")?;
+    let kind = MicrofacetType::parse(&name).ok_or_else(|| {
+        p.error(format!(
+            "distribution \"{name}\" is not one of \"beckmann\", \"ggx\""
+        ))
+    })?;
+    let (has_u, has_v) = (p.has("alpha_u"), p.has("alpha_v"));
+    let (au, av) = if has_u || has_v {
+        if !anisotropic {
+            return Err(p.error(
+                "anisotropic roughness (alpha_u, alpha_v) is not supported by this plugin, as in Mitsuba 3; give alpha",
+            ));
+        }
+        if !(has_u && has_v) {
+            return Err(p.error("give both alpha_u and alpha_v, or alpha"));
+        }
+        if p.has("alpha") {
+            return Err(p.error("give either alpha or alpha_u and alpha_v, not both"));
+        }
+        let (au, av) = (
+            p.float_in("alpha_u", 0.1, 0.0, 1e3)?,
+            p.float_in("alpha_v", 0.1, 0.0, 1e3)?,
+        );
+        // Anisotropy is oriented by the surface's tangent (Mitsuba's ∂p/∂u), which
+        // mediareg's shading frames do not follow: refuse rather than orient it otherwise.
+        if au != av {
+            return Err(p.error(format!(
+                "anisotropic roughness (alpha_u {au} != alpha_v {av}) is not supported: mediareg's shading frames do not follow the surface's ∂p/∂u tangent, which orients it in Mitsuba"
+            ))
+            .with_hint("give one alpha (isotropic roughness)"));
+        }
+        (au, av)
+    } else {
+        let a = p.float_in("alpha", 0.1, 0.0, 1e3)?;
+        (a, a)
+    };
+    if !p.bool("sample_visible", true)? {
+        eprintln!(
+            "note: {}: sample_visible = false is read; mediareg samples visible normals (the same image in expectation)",
+            p.obj.label()
+        );
+    }
+    Ok(Microfacet::new(kind, au as f32, av as f32))
+}
+
+/// int_ior / ext_ior (defaults `int_default` and "air"), which must differ, as Mitsuba's
+/// rough models require.
+fn relative_ior(p: &Props, int_default: &str) -> Result<f32> {
+    let int_ior = ior(p, "int_ior", int_default)?;
+    let ext_ior = ior(p, "ext_ior", "air")?;
+    if int_ior == ext_ior {
+        return Err(p.error(format!(
+            "int_ior and ext_ior are both {int_ior}: they must differ (a null bsdf is an index-matched boundary)"
+        )));
+    }
+    Ok((int_ior / ext_ior) as f32)
 }
 
 /// An index of refraction: a number, or one of Mitsuba's named materials.

@@ -156,7 +156,7 @@ impl<'a> Props<'a> {
     pub fn color_opt_as(&self, name: &str, usage: SpectrumUse) -> Result<Option<(Vec3, Loc)>> {
         if let Some(c) = self.child_named(name) {
             let o = self.desc.object(c.object);
-            return err_at(
+            let e = SceneError::at(
                 &c.loc,
                 format!(
                     "{}: \"{name}\" given as a nested {} plugin \"{}\"; only a constant <float>, <rgb> or <spectrum value=\"v\"/> is supported",
@@ -165,6 +165,11 @@ impl<'a> Props<'a> {
                     o.plugin
                 ),
             );
+            return Err(if o.kind == ObjectKind::Volume {
+                e.with_hint("a volume makes the medium vary in space (heterogeneous), which is out of scope: mediareg renders homogeneous media")
+            } else {
+                e
+            });
         }
         match self.get(name) {
             None => Ok(None),

@@ -150,6 +150,8 @@ pub struct SceneDescription {
     pub files: Vec<std::path::PathBuf>,
     /// Directories searched for relative file names: the scene's folder, then each `-a`.
     pub search_path: Vec<std::path::PathBuf>,
+    /// One line per Mitsuba 0.6 reading the loader made (`upgrade`), to be printed.
+    pub notes: Vec<String>,
 }
 
 impl SceneDescription {

@@ -17,6 +17,8 @@ use crate::error::{err_at, Loc, Result, SceneError};
 pub struct LoadOptions {
     pub params: Vec<(String, String)>,
     pub search_dirs: Vec<PathBuf>,
+    /// Refuse the 0.6 readings `upgrade` would otherwise make (`--strict-v3`).
+    pub strict_v3: bool,
 }
 
 /// A scene parameter (`$name`): its value, and whether anything used it.
@@ -33,6 +35,9 @@ struct Loader {
     files: Vec<PathBuf>,
     include_stack: Vec<PathBuf>,
     search_path: Vec<PathBuf>,
+    /// One line per 0.6 reading made (see `upgrade`).
+    notes: Vec<String>,
+    strict_v3: bool,
 }
 
 /// Mitsuba 3 upgrades files whose `version` is below 2.0.0.
@@ -62,6 +67,8 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<SceneDescription> {
         files: Vec::new(),
         include_stack: Vec::new(),
         search_path,
+        notes: Vec::new(),
+        strict_v3: opts.strict_v3,
     };
     for (name, value) in &opts.params {
         loader.params.insert(
@@ -103,6 +110,7 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<SceneDescription> {
         root,
         files: loader.files,
         search_path: loader.search_path,
+        notes: loader.notes,
     })
 }
 
@@ -249,6 +257,9 @@ impl Loader {
             loc: el.loc.clone(),
         };
         self.children(&el.children, &mut obj, version)?;
+        if version < Version(2, 0, 0) {
+            super::upgrade::from_v1(&mut obj, &mut self.objects, &mut self.notes, self.strict_v3)?;
+        }
         let oid = self.objects.len();
         self.objects.push(obj);
         if let Some(id) = id {

@@ -1,10 +1,12 @@
 //! Mitsuba 3 scene files: reading XML (`element`), Mitsuba's semantics (`load`), the
-//! resulting description (`description`) and `<transform>` math (`transform`).
+//! resulting description (`description`), `<transform>` math (`transform`) and the
+//! upgrade of files older than 2.0 (`upgrade`).
 
 pub mod description;
 pub mod element;
 pub mod load;
 pub mod transform;
+pub mod upgrade;
 
 pub use description::SceneDescription;
 pub use load::{load_file, LoadOptions};

@@ -39,17 +39,30 @@ pub fn options_in(params: &[(&str, &str)], search_dirs: Vec<PathBuf>) -> LoadOpt
             .map(|(k, v)| (k.to_string(), v.to_string()))
             .collect(),
         search_dirs,
+        ..Default::default()
     }
 }
 
 /// Loads `scene` with `params` at `spp` samples and `seed`.
 pub fn load_seeded(scene: &Path, params: &[(&str, &str)], spp: u32, seed: u64) -> Scene {
+    load_seeded_crop(scene, params, spp, seed, None)
+}
+
+/// `load_seeded` with a crop window `[x, y, w, h]` of the film (`--crop`).
+pub fn load_seeded_crop(
+    scene: &Path,
+    params: &[(&str, &str)],
+    spp: u32,
+    seed: u64,
+    crop: Option<[usize; 4]>,
+) -> Scene {
     mediareg::load_scene(
         scene,
         &options(params),
         &BuildOverrides {
             spp: Some(spp),
             seed: Some(seed),
+            crop,
         },
     )
     .unwrap_or_else(|e| panic!("{e}"))
@@ -63,9 +76,21 @@ pub fn render_chunks(
     spp: u32,
     base_seed: u64,
 ) -> Vec<Vec<[f32; 3]>> {
+    render_chunks_crop(scene, params, k, spp, base_seed, None)
+}
+
+/// `render_chunks` of a crop window of the film.
+pub fn render_chunks_crop(
+    scene: &Path,
+    params: &[(&str, &str)],
+    k: usize,
+    spp: u32,
+    base_seed: u64,
+    crop: Option<[usize; 4]>,
+) -> Vec<Vec<[f32; 3]>> {
     (0..k)
         .map(|i| {
-            let s = load_seeded(scene, params, spp, base_seed + i as u64);
+            let s = load_seeded_crop(scene, params, spp, base_seed + i as u64, crop);
             mediareg::integrator::render(&s, false).0.pixels
         })
         .collect()
@@ -99,6 +124,8 @@ pub fn render_gradient_chunks(
 
 pub struct Reference {
     pub estimate: Estimate,
+    /// The crop window the reference covers, if it is one (`--crop`).
+    pub crop: Option<[usize; 4]>,
 }
 
 impl Reference {
@@ -140,6 +167,7 @@ pub fn reference(name: &str, scene: &Path) -> Reference {
     let opts = LoadOptions {
         params,
         search_dirs: mesh_dirs(),
+        ..Default::default()
     };
     let desc = mediareg::xml::load_file(scene, &opts).unwrap_or_else(|e| panic!("{e}"));
     let r = mediareg::report::table::Reference::load(&dir, name, scene, &opts, &desc)
@@ -151,6 +179,7 @@ pub fn reference(name: &str, scene: &Path) -> Reference {
             var_mean: to64(&r.var.pixels),
             dof: r.meta.chunks as f64 - 1.0,
         },
+        crop: r.meta.crop,
     }
 }
 
@@ -161,8 +190,21 @@ pub const FALSE_ALARM: f64 = 1e-6;
 /// Whether the scene's pixels are independent (box filter), and then the image width:
 /// what `compare` needs to run its block and global checks.
 pub fn independent_width(scene: &Path, params: &[(&str, &str)]) -> Option<usize> {
-    let s = mediareg::load_scene(scene, &options(params), &BuildOverrides::default())
-        .unwrap_or_else(|e| panic!("{e}"));
+    independent_width_crop(scene, params, None)
+}
+
+/// `independent_width` of a crop window.
+pub fn independent_width_crop(
+    scene: &Path,
+    params: &[(&str, &str)],
+    crop: Option<[usize; 4]>,
+) -> Option<usize> {
+    let overrides = BuildOverrides {
+        crop,
+        ..Default::default()
+    };
+    let s =
+        mediareg::load_scene(scene, &options(params), &overrides).unwrap_or_else(|e| panic!("{e}"));
     matches!(s.film.rfilter, mediareg::scene::film::Rfilter::Box).then_some(s.film.crop_size.0)
 }
 
@@ -190,8 +232,10 @@ pub fn check_file_against_reference(
     seed: u64,
 ) -> Comparison {
     let r = reference(name, scene);
-    let ours = Estimate::from_chunks(&render_chunks(scene, params, chunks, spp, seed));
-    let width = independent_width(scene, params);
+    let ours = Estimate::from_chunks(&render_chunks_crop(
+        scene, params, chunks, spp, seed, r.crop,
+    ));
+    let width = independent_width_crop(scene, params, r.crop);
     let c = compare(&ours, &r.estimate, width, ALPHA, FALSE_ALARM);
     println!("{name} {params:?}: {c}");
     c
