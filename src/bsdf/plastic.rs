@@ -172,8 +172,9 @@ pub struct RoughPlastic {
 /// they are computed once per (distribution, α, η) and process: every render of a test
 /// loads its scene anew.
 fn coating_tables(eta: f32, distr: Microfacet) -> (Box<[f32; TRANSMITTANCE_RES]>, f32) {
-    type Key = (u32, u32, u32);
-    static CACHE: Mutex<Vec<(Key, Box<[f32; TRANSMITTANCE_RES]>, f32)>> = Mutex::new(Vec::new());
+    /// (distribution, α bits, η bits) → (T table, R_int).
+    type Entry = ((u32, u32, u32), Box<[f32; TRANSMITTANCE_RES]>, f32);
+    static CACHE: Mutex<Vec<Entry>> = Mutex::new(Vec::new());
     let key = (distr.kind as u32, distr.alpha_u.to_bits(), eta.to_bits());
     if let Some((_, t, r)) = CACHE.lock().unwrap().iter().find(|(k, ..)| *k == key) {
         return (t.clone(), *r);
