@@ -372,3 +372,18 @@ fn negative_roughness() {
         &["\"alpha\" = -0.2", "out of range"],
     );
 }
+
+#[test]
+fn bitmap_file_missing() {
+    expect_error(
+        "bitmap_missing.xml",
+        9,
+        &["no_such_texture.png", "not found", "-a DIR"],
+    );
+}
+
+/// A reflectance texture with values above 1 (an HDR sky) is refused.
+#[test]
+fn bitmap_reflectance_above_one() {
+    expect_error("bitmap_above_one.xml", 9, &["sky.exr", "outside [0, 1]"]);
+}

@@ -97,7 +97,14 @@ const EXPECTED: &[(&str, Status)] = &[
     ),
     (
         "mdata_homo_spectral_sigmat",
-        Refused("unsupported integrator plugin \"volpathmis\""),
+        Matches {
+            // volpathmis (rendered by mediareg's volpath: the same image in
+            // expectation) through a strongly chromatic sigma_t (1, 0.2, 1).
+            reference: "corpus_mdata_homo_spectral_sigmat",
+            params: &[],
+            chunks: 16,
+            spp: 128,
+        },
     ),
     // Heterogeneous media are out of scope: refused by name.
     (
@@ -114,9 +121,10 @@ const EXPECTED: &[(&str, Status)] = &[
         "mdata_hetero_spectral_noscat",
         Refused("unsupported medium plugin \"heterogeneous\""),
     ),
+    // Heterogeneous media are out of scope: refused by name (its volpathmis loads).
     (
         "mdata_hetero_spectral_mis",
-        Refused("unsupported integrator plugin \"volpathmis\""),
+        Refused("unsupported medium plugin \"heterogeneous\""),
     ),
     (
         "mdata_surf_area_light_volpath",

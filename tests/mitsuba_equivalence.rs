@@ -187,6 +187,35 @@ fn roughconductor_comparison_detects_alpha_off() {
     );
 }
 
+/// `bitmap`: an 8-bit sRGB PNG (bilinear, repeated) on an OBJ quad and a linear EXR
+/// (nearest, mirrored) under a plastic coating.
+#[test]
+fn bitmap_matches_mitsuba() {
+    let c = check("bitmap", &[], 61);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: the PNG read without its sRGB decoding (`raw`) must fail.
+#[test]
+fn bitmap_comparison_detects_missing_srgb_decoding() {
+    let c = check("bitmap", &[("raw", "true")], 62);
+    assert!(!c.passed, "raw (no sRGB decoding) went undetected: {c}");
+}
+
+/// Power: nearest lookups instead of bilinear must fail.
+#[test]
+fn bitmap_comparison_detects_filter_type() {
+    let c = check("bitmap", &[("filter", "nearest")], 63);
+    assert!(!c.passed, "nearest for bilinear went undetected: {c}");
+}
+
+/// Power: mirrored instead of repeated tiles must fail.
+#[test]
+fn bitmap_comparison_detects_wrap_mode() {
+    let c = check("bitmap", &[("wrap", "mirror")], 64);
+    assert!(!c.passed, "mirror for repeat went undetected: {c}");
+}
+
 /// The `spot` scene, at SPP_SPOT: light reaches the far floor only by rare bounces off
 /// the sphere, and at 64 spp per chunk those heavy-tailed pixels gave 15–34 outliers
 /// (33 allowed) over four seeds.

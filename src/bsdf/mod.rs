@@ -5,6 +5,7 @@
 //! All directions are in the local shading frame (z = shading normal), `wi` points away
 //! from the surface toward where the path came from, as in Mitsuba.
 
+pub mod bitmap;
 pub mod conductor;
 pub mod dielectric;
 pub mod microfacet;

@@ -1,8 +1,13 @@
-//! Textures a BSDF parameter may be: a constant, or Mitsuba's `checkerboard`
+//! Textures a BSDF parameter may be: a constant, Mitsuba's `checkerboard`
 //! (`src/textures/checkerboard.cpp`): with uv' = to_uv · uv and the mask
-//! m = frac(uv') > ½ per axis, color0 where m.x = m.y, else color1.
+//! m = frac(uv') > ½ per axis, color0 where m.x = m.y, else color1; or a `bitmap`
+//! (`super::bitmap`).
+
+use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
+
+use super::bitmap::Bitmap;
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Texture {
@@ -13,6 +18,8 @@ pub enum Texture {
         /// The 2D affine `to_uv`: rows (a, b, tx) and (c, d, ty).
         to_uv: [[f32; 3]; 2],
     },
+    /// An image (shared: BSDFs are cloned per use).
+    Bitmap(Arc<Bitmap>),
 }
 
 impl Texture {
@@ -33,6 +40,7 @@ impl Texture {
                     *color1
                 }
             }
+            Texture::Bitmap(b) => b.eval(uv),
         }
     }
 
@@ -42,6 +50,7 @@ impl Texture {
         match self {
             Texture::Constant(c) => c.element_sum() / 3.0,
             Texture::Checkerboard { color0, color1, .. } => (*color0 + *color1).element_sum() / 6.0,
+            Texture::Bitmap(b) => b.mean(),
         }
     }
 
@@ -49,7 +58,7 @@ impl Texture {
     pub fn constant(&self) -> Option<Vec3> {
         match self {
             Texture::Constant(c) => Some(*c),
-            Texture::Checkerboard { .. } => None,
+            Texture::Checkerboard { .. } | Texture::Bitmap(_) => None,
         }
     }
 }

@@ -3,6 +3,7 @@
 
 use std::collections::HashMap;
 use std::path::Path;
+use std::sync::Arc;
 
 use glam::{DMat4, DVec3, Mat4, Vec2, Vec3, Vec3A};
 
@@ -10,6 +11,7 @@ use super::camera::{fov_x_degrees, PerspectiveCamera};
 use super::film::{Film, Rfilter};
 use super::props::Props;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
+use crate::bsdf::bitmap::{read_texels, Bitmap, FilterType, WrapMode};
 use crate::bsdf::dielectric::named_ior;
 use crate::bsdf::microfacet::{Microfacet, MicrofacetType};
 use crate::bsdf::{
@@ -274,11 +276,23 @@ impl Builder<'_> {
         let p = Props::new(self.desc, id);
         let kind = match p.obj.plugin.as_str() {
             "path" => IntegratorKind::Path,
-            "volpath" => IntegratorKind::Volpath,
+            // Mitsuba's `volpathmis` estimates the same radiance as `volpath` (it only
+            // samples chromatic media differently; `use_spectral_mis` picks how), so it
+            // renders the same image in expectation: mediareg's volpath renders it.
+            "volpath" | "volpathmis" => IntegratorKind::Volpath,
             "direct" => return direct_integrator(p),
             "moment" => return self.moment_integrator(p),
-            _ => return Err(unsupported(&p, "integrator", "path, volpath, direct")),
+            _ => {
+                return Err(unsupported(
+                    &p,
+                    "integrator",
+                    "path, volpath, volpathmis, direct, moment",
+                ))
+            }
         };
+        if p.obj.plugin == "volpathmis" {
+            p.bool("use_spectral_mis", true)?;
+        }
         let max_depth = p.int("max_depth", -1)?;
         if max_depth < -1 {
             return Err(p.error(format!(
@@ -290,7 +304,7 @@ impl Builder<'_> {
             return Err(p.error(format!("rr_depth = {rr_depth}: must be > 0")));
         }
         let hide_emitters = p.bool("hide_emitters", false)?;
-        p.finish("max_depth, rr_depth, hide_emitters")?;
+        p.finish("max_depth, rr_depth, hide_emitters (volpathmis: use_spectral_mis)")?;
         Ok(IntegratorSettings {
             kind,
             max_depth: if max_depth == -1 {
@@ -675,24 +689,92 @@ impl Builder<'_> {
             )?));
         };
         let t = Props::new(self.desc, child.object);
+        if t.obj.plugin == "bitmap" {
+            return self.bitmap(t, name);
+        }
         if t.obj.plugin != "checkerboard" {
-            return Err(unsupported(&t, "texture", "checkerboard"));
+            return Err(unsupported(&t, "texture", "checkerboard, bitmap"));
         }
         let color0 = in_unit(t.color_nonneg("color0", Vec3::splat(0.4))?, &t)?;
         let color1 = in_unit(t.color_nonneg("color1", Vec3::splat(0.2))?, &t)?;
         // Mitsuba's to_uv is a 2D affine map: the 4x4 matrix's upper-left 2x2 and its
         // translation.
-        let m = t.transform("to_uv")?;
-        let to_uv = [
-            [m.x_axis.x as f32, m.y_axis.x as f32, m.w_axis.x as f32],
-            [m.x_axis.y as f32, m.y_axis.y as f32, m.w_axis.y as f32],
-        ];
+        let to_uv = to_uv(&t)?;
         t.finish("color0, color1, to_uv")?;
         Ok(Texture::Checkerboard {
             color0,
             color1,
             to_uv,
         })
+    }
+
+    /// Mitsuba's `bitmap` as a reflectance: `filename` (PNG or OpenEXR), `filter_type`
+    /// (bilinear), `wrap_mode` (repeat), `raw` (false), `to_uv`; `format` and `accel`
+    /// only choose Mitsuba's storage and are read. Texels must lie in [0, 1].
+    fn bitmap(&self, t: Props, name: &str) -> Result<Texture> {
+        let file = t.string("filename", "")?;
+        if file.is_empty() {
+            return Err(t.error("bitmap needs a filename"));
+        }
+        let loc = t
+            .get("filename")
+            .map_or(t.obj.loc.clone(), |(_, l)| l.clone());
+        let path = resolve_path(&self.desc.search_path, &file).ok_or_else(|| {
+            SceneError::at(&loc, format!("bitmap \"{file}\" not found"))
+                .with_hint("give a path relative to the scene, or add its folder with -a DIR")
+        })?;
+        let filter = match t.string("filter_type", "bilinear")?.as_str() {
+            "bilinear" => FilterType::Bilinear,
+            "nearest" => FilterType::Nearest,
+            f => {
+                return Err(t.error(format!(
+                    "filter_type \"{f}\" is not one of \"bilinear\", \"nearest\""
+                )))
+            }
+        };
+        let wrap = match t.string("wrap_mode", "repeat")?.as_str() {
+            "repeat" => WrapMode::Repeat,
+            "mirror" => WrapMode::Mirror,
+            "clamp" => WrapMode::Clamp,
+            w => {
+                return Err(t.error(format!(
+                    "wrap_mode \"{w}\" is not one of \"repeat\", \"mirror\", \"clamp\""
+                )))
+            }
+        };
+        let raw = t.bool("raw", false)?;
+        let format = t.string("format", "auto")?;
+        if !["auto", "variant", "float16", "fp16", "uint8"].contains(&format.as_str()) {
+            return Err(t.error(format!(
+                "format \"{format}\" is not one of \"auto\", \"variant\", \"float16\", \"uint8\""
+            )));
+        }
+        t.bool("accel", true)?;
+        let to_uv = to_uv(&t)?;
+        let (width, height, texels) =
+            read_texels(&path, raw).map_err(|e| SceneError::at(&loc, e))?;
+        if width == 0 || height == 0 {
+            return Err(SceneError::at(&loc, format!("bitmap \"{file}\" is empty")));
+        }
+        let b = Bitmap {
+            width,
+            height,
+            texels,
+            filter,
+            wrap,
+            to_uv,
+        };
+        if !(b.max_value() <= 1.0) || b.texels.iter().any(|c| c.min_element() < 0.0) {
+            return Err(SceneError::at(
+                &loc,
+                format!(
+                    "bitmap \"{file}\" used as {name} has values outside [0, 1] (largest {})",
+                    b.max_value()
+                ),
+            ));
+        }
+        t.finish("filename, filter_type, wrap_mode, raw, format, accel, to_uv")?;
+        Ok(Texture::Bitmap(Arc::new(b)))
     }
 
     fn bsdf_value(&self, id: ObjId) -> Result<Bsdf> {
@@ -1166,6 +1248,16 @@ fn relative_ior(p: &Props, int_default: &str) -> Result<f32> {
         )));
     }
     Ok((int_ior / ext_ior) as f32)
+}
+
+/// A texture's `to_uv`, Mitsuba's 2D affine map: the 4×4 matrix's upper-left 2×2 and its
+/// translation, as rows (a, b, tx) and (c, d, ty).
+fn to_uv(t: &Props) -> Result<[[f32; 3]; 2]> {
+    let m = t.transform("to_uv")?;
+    Ok([
+        [m.x_axis.x as f32, m.y_axis.x as f32, m.w_axis.x as f32],
+        [m.x_axis.y as f32, m.y_axis.y as f32, m.w_axis.y as f32],
+    ])
 }
 
 /// An index of refraction: a number, or one of Mitsuba's named materials.
