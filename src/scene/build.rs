@@ -764,7 +764,8 @@ impl Builder<'_> {
             wrap,
             to_uv,
         };
-        if !(b.max_value() <= 1.0) || b.texels.iter().any(|c| c.min_element() < 0.0) {
+        let outside = |c: &Vec3| !c.is_finite() || c.min_element() < 0.0 || c.max_element() > 1.0;
+        if b.texels.iter().any(outside) {
             return Err(SceneError::at(
                 &loc,
                 format!(
