@@ -159,7 +159,7 @@ impl<'a> Props<'a> {
             let e = SceneError::at(
                 &c.loc,
                 format!(
-                    "{}: \"{name}\" given as a nested {} plugin \"{}\"; only a constant <float>, <rgb> or <spectrum value=\"v\"/> is supported",
+                    "{}: \"{name}\" given as a nested {} plugin \"{}\"; only a constant <float>, <rgb> or <spectrum> is supported here",
                     self.obj.label(),
                     o.kind.tag(),
                     o.plugin

@@ -665,7 +665,6 @@ pub fn parse_float(s: &str, loc: &Loc) -> Result<f64> {
     Ok(v)
 }
 
-/// Numbers separated by commas and/or whitespace, as Mitsuba's tokenizer accepts.
 /// `"λ₁:v₁, λ₂:v₂, …"`: at least two pairs, wavelengths (nm) strictly increasing, values
 /// finite and nonnegative (Mitsuba turns the list into RGB by integrating it; see
 /// `scene::spectrum`).
@@ -704,6 +703,7 @@ fn parse_sampled_spectrum(s: &str, loc: &Loc) -> Result<Vec<(f64, f64)>> {
     Ok(pairs)
 }
 
+/// Numbers separated by commas and/or whitespace, as Mitsuba's tokenizer accepts.
 fn parse_list(s: &str, loc: &Loc) -> Result<Vec<f64>> {
     s.split(|c: char| c == ',' || c.is_whitespace())
         .filter(|t| !t.is_empty())
