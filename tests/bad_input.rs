@@ -344,14 +344,14 @@ fn spectrum_negative_value() {
     );
 }
 
-/// Anisotropic roughness is refused (its orientation follows a tangent mediareg does
-/// not track), with the remedy.
+/// Anisotropic roughness on a sphere is refused (its orientation follows ∂p/∂u, which
+/// mediareg has on meshes and rectangles only), naming the shape.
 #[test]
-fn anisotropic_roughness_refused() {
+fn anisotropic_roughness_on_a_sphere_refused() {
     expect_error(
         "anisotropic_roughness.xml",
-        7,
-        &["anisotropic roughness", "alpha_u 0.3", "give one alpha"],
+        6,
+        &["anisotropic roughness", "\"sphere\"", "meshes and rectangles"],
     );
 }
 

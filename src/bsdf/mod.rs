@@ -88,6 +88,17 @@ impl Bsdf {
         }
     }
 
+    /// Whether the roughness differs along the surface's two tangents (alpha_u ≠ alpha_v):
+    /// then the shading frame must follow ∂p/∂u, as in Mitsuba.
+    pub fn is_anisotropic(&self) -> bool {
+        match self {
+            Bsdf::RoughDielectric(d) => d.distr.alpha_u != d.distr.alpha_v,
+            Bsdf::RoughConductor(c) => c.distr.alpha_u != c.distr.alpha_v,
+            Bsdf::TwoSided(b) => b[0].is_anisotropic() || b[1].is_anisotropic(),
+            _ => false,
+        }
+    }
+
     /// Whether some light passes straight through (Mitsuba's `BSDFFlags::Null` among the
     /// BSDF's flags): `null`, `thindielectric`.
     pub fn has_null_component(&self) -> bool {

@@ -443,6 +443,25 @@ impl TriangleMesh {
         (p, n, sh_n)
     }
 
+    /// Mitsuba's ∂p/∂u on triangle `tri` with geometric normal `n`: from the texture
+    /// coordinates when the mesh has them (coordinate_system(n) where they are
+    /// degenerate), else the barycentric parameterisation's p1 − p0.
+    pub fn dp_du(&self, tri: u32, n: Vec3A) -> Vec3A {
+        let idx = self.triangles[tri as usize];
+        let [p0, p1, p2] = idx.map(|i| self.positions[i as usize]);
+        let (dp0, dp1) = (p1 - p0, p2 - p0);
+        let Some(uvs) = &self.uvs else {
+            return dp0;
+        };
+        let [uv0, uv1, uv2] = idx.map(|i| uvs[i as usize]);
+        let (duv0, duv1) = (uv1 - uv0, uv2 - uv0);
+        let det = duv0.x * duv1.y - duv0.y * duv1.x;
+        if det == 0.0 {
+            return super::Frame::new(n).s;
+        }
+        (dp0 * duv1.y - dp1 * duv0.y) / det
+    }
+
     /// A point uniformly distributed over the surface; pdf (area) = 1 / total_area.
     pub fn sample_position(&self, sample: Vec2) -> (Vec3A, Vec3A) {
         let target = sample.x * self.total_area;

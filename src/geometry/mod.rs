@@ -63,6 +63,19 @@ impl Frame {
         Frame { s, t, n }
     }
 
+    /// The frame around `n` whose first axis is the tangent `dp_du` made orthogonal to
+    /// `n` (Mitsuba's `initialize_sh_frame`); `Frame::new(n)` when that vanishes.
+    pub fn with_tangent(n: Vec3A, dp_du: Vec3A) -> Self {
+        match (dp_du - n * n.dot(dp_du)).try_normalize() {
+            Some(s) => Frame {
+                s,
+                t: n.cross(s),
+                n,
+            },
+            None => Frame::new(n),
+        }
+    }
+
     pub fn to_local(&self, v: Vec3A) -> Vec3A {
         Vec3A::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
     }

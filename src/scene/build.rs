@@ -645,6 +645,15 @@ impl Builder<'_> {
                 p.obj.plugin
             )));
         }
+        // Anisotropy is oriented by ∂p/∂u, which mediareg follows on meshes and
+        // rectangles; Mitsuba's cube, sphere and disk have their own parameterisations.
+        let tangent_frame = self.bsdfs[bsdf as usize].is_anisotropic();
+        if tangent_frame && matches!(p.obj.plugin.as_str(), "cube" | "sphere" | "disk") {
+            return Err(p.error(format!(
+                "anisotropic roughness on a \"{}\" shape is not supported yet (it follows the surface's ∂p/∂u, which mediareg has on ply/obj/serialized meshes and rectangles)",
+                p.obj.plugin
+            )));
+        }
         // An area light is sampled with pdf 1 / area.
         if emitter.is_some() && !(geometry.area() > 0.0 && geometry.area().is_finite()) {
             return Err(p.error(format!(
@@ -659,6 +668,7 @@ impl Builder<'_> {
             emitter,
             interior,
             exterior,
+            tangent_frame,
         });
         Ok(())
     }
@@ -1188,8 +1198,7 @@ fn conductor_ior(p: &Props) -> Result<(Vec3, Vec3)> {
 }
 
 /// Mitsuba's microfacet parameters: `distribution` ("beckmann" or "ggx"; Beckmann by
-/// default), `alpha` (0.1) or both `alpha_u` and `alpha_v` (only where `anisotropic`, and
-/// then only equal: the tangent that orients anisotropy is not tracked),
+/// default), `alpha` (0.1) or both `alpha_u` and `alpha_v` (only where `anisotropic`),
 /// and `sample_visible` (true). mediareg always samples the visible normals; `false`
 /// only changes how Mitsuba samples, not what it computes, so it is read and noted.
 fn microfacet(p: &Props, anisotropic: bool) -> Result<Microfacet> {
@@ -1212,19 +1221,10 @@ fn microfacet(p: &Props, anisotropic: bool) -> Result<Microfacet> {
         if p.has("alpha") {
             return Err(p.error("give either alpha or alpha_u and alpha_v, not both"));
         }
-        let (au, av) = (
+        (
             p.float_in("alpha_u", 0.1, 0.0, 1e3)?,
             p.float_in("alpha_v", 0.1, 0.0, 1e3)?,
-        );
-        // Anisotropy is oriented by the surface's tangent (Mitsuba's ∂p/∂u), which
-        // mediareg's shading frames do not follow: refuse rather than orient it otherwise.
-        if au != av {
-            return Err(p.error(format!(
-                "anisotropic roughness (alpha_u {au} != alpha_v {av}) is not supported: mediareg's shading frames do not follow the surface's ∂p/∂u tangent, which orients it in Mitsuba"
-            ))
-            .with_hint("give one alpha (isotropic roughness)"));
-        }
-        (au, av)
+        )
     } else {
         let a = p.float_in("alpha", 0.1, 0.0, 1e3)?;
         (a, a)

@@ -51,6 +51,9 @@ pub struct ShapeInfo {
     pub emitter: Option<u32>,
     pub interior: Option<u32>,
     pub exterior: Option<u32>,
+    /// The shading frame follows ∂p/∂u (Mitsuba's `initialize_sh_frame`): needed by an
+    /// anisotropic BSDF; any other frame around the normal serves the rest.
+    pub tangent_frame: bool,
 }
 
 pub struct Scene {
@@ -161,11 +164,23 @@ impl Scene {
                 (p, pl.normal, pl.normal, uv)
             }
         };
+        let sh_frame = if self.shapes[hit.shape as usize].tangent_frame {
+            let dp_du = match &self.geometries[hit.shape as usize] {
+                Geometry::Mesh(m) => m.dp_du(hit.prim, n),
+                // Mitsuba's rectangle: ∂p/∂u = to_world · (2, 0, 0).
+                Geometry::Planar(pl) => pl.to_world.transform_vector3a(Vec3A::X),
+                // Refused when the scene is built (no ∂p/∂u here).
+                Geometry::Sphere(_) => Vec3A::ZERO,
+            };
+            Frame::with_tangent(sh_n, dp_du)
+        } else {
+            Frame::new(sh_n)
+        };
         SurfaceInteraction {
             t: hit.t,
             p,
             n,
-            sh_frame: Frame::new(sh_n),
+            sh_frame,
             uv,
             shape: hit.shape,
         }
