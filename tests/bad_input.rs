@@ -351,7 +351,11 @@ fn anisotropic_roughness_on_a_sphere_refused() {
     expect_error(
         "anisotropic_roughness.xml",
         6,
-        &["anisotropic roughness", "\"sphere\"", "meshes and rectangles"],
+        &[
+            "anisotropic roughness",
+            "\"sphere\"",
+            "meshes and rectangles",
+        ],
     );
 }
 
