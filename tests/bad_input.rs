@@ -344,17 +344,17 @@ fn spectrum_negative_value() {
     );
 }
 
-/// Anisotropic roughness on a sphere is refused (its orientation follows ∂p/∂u, which
-/// mediareg has on meshes and rectangles only), naming the shape.
+/// Anisotropic roughness on a cube is refused (its orientation follows ∂p/∂u, from
+/// texture coordinates mediareg's cube lacks), naming the shape.
 #[test]
-fn anisotropic_roughness_on_a_sphere_refused() {
+fn anisotropic_roughness_on_a_cube_refused() {
     expect_error(
         "anisotropic_roughness.xml",
         6,
         &[
             "anisotropic roughness",
-            "\"sphere\"",
-            "meshes and rectangles",
+            "\"cube\"",
+            "meshes, rectangles, disks and spheres",
         ],
     );
 }

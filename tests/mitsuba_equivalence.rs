@@ -231,7 +231,8 @@ fn bitmap_comparison_detects_wrap_mode() {
 }
 
 /// Anisotropic roughness, oriented by ∂p/∂u: from texture coordinates (OBJ quad), from
-/// the barycentric parameterisation (PLY without them), from a rectangle's x axis.
+/// the barycentric parameterisation (PLY without them), from a rectangle's x axis, a
+/// rotated sphere's azimuth and a disk's radius.
 #[test]
 fn anisotropic_matches_mitsuba() {
     let c = check_anisotropic(&[], 71);
@@ -256,6 +257,16 @@ fn anisotropic_comparison_detects_a_turned_barycentric_frame() {
     assert!(
         !c.passed,
         "the wax's anisotropy turned by 90° went undetected: {c}"
+    );
+}
+
+/// Power: the same for the rotated sphere (its azimuthal ∂p/∂u).
+#[test]
+fn anisotropic_comparison_detects_a_turned_sphere_frame() {
+    let c = check_anisotropic(&[("sphere_u", "0.05"), ("sphere_v", "0.5")], 74);
+    assert!(
+        !c.passed,
+        "the sphere's anisotropy turned by 90° went undetected: {c}"
     );
 }
 

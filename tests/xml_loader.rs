@@ -648,8 +648,8 @@ fn envmap_errors() {
 }
 
 /// Textures and `moment`: a checkerboard on a shape without texture coordinates here,
-/// an unknown texture plugin and a `moment` with two nested integrators are refused
-/// clearly; `moment` around one integrator is that integrator, with a warning.
+/// an unknown texture plugin, a bitmap without a file and a `moment` with two nested
+/// integrators are refused clearly; `moment` around one integrator is that integrator, with a warning.
 #[test]
 fn textures_and_moment() {
     let checks = r#"<texture type="checkerboard" name="reflectance"/>"#;
@@ -659,10 +659,18 @@ fn textures_and_moment() {
     );
     assert!(e.contains("textured bsdf on a \"sphere\""), "{e}");
     let e = build_err(
+        "texture_unknown",
+        r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="mesh_attribute" name="reflectance"/></bsdf></shape>"#,
+    );
+    assert!(
+        e.contains("unsupported texture plugin \"mesh_attribute\"") && e.contains("bitmap"),
+        "{e}"
+    );
+    let e = build_err(
         "texture_bitmap",
         r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"/></bsdf></shape>"#,
     );
-    assert!(e.contains("unsupported texture plugin \"bitmap\""), "{e}");
+    assert!(e.contains("bitmap needs a filename"), "{e}");
     let e = build_err(
         "moment_two",
         r#"<integrator type="moment"><integrator type="path"/><integrator type="volpath"/></integrator>"#,

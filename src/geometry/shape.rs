@@ -1,7 +1,7 @@
 //! Mitsuba's built-in analytic shapes (`sphere`, `rectangle`, `disk`) and the shape enum
 //! the renderer works with. `cube` is a triangle mesh, as in Mitsuba 3.
 
-use glam::{Mat4, Vec2, Vec3A};
+use glam::{Mat3A, Mat4, Vec2, Vec3A};
 
 use super::mesh::TriangleMesh;
 use super::Bounds;
@@ -12,6 +12,9 @@ pub struct Sphere {
     pub center: Vec3A,
     pub radius: f32,
     pub flip_normals: bool,
+    /// The rotation (or reflection) part of `to_world`: the sphere's own axes, which
+    /// orient its parameterisation (∂p/∂u).
+    pub axes: Mat3A,
 }
 
 /// Mitsuba's `rectangle` ([-1, 1]² in the z = 0 plane, normal +z) and `disk` (unit disk in
@@ -130,6 +133,13 @@ pub fn square_to_uniform_sphere(s: Vec2) -> Vec3A {
 }
 
 impl Sphere {
+    /// Mitsuba's ∂p/∂u at `p` (up to its 2π length): the azimuthal direction
+    /// (−y, x, 0) in the sphere's own frame; zero at the poles.
+    pub fn dp_du(&self, p: Vec3A) -> Vec3A {
+        let local = self.axes.transpose() * (p - self.center);
+        self.axes * Vec3A::new(-local.y, local.x, 0.0)
+    }
+
     /// Ray–sphere intersection in double precision (as Mitsuba does), nearest t > 0.
     #[inline]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<f32> {
@@ -276,6 +286,7 @@ mod tests {
             center: Vec3A::new(0.3, -0.2, 0.5),
             radius: 0.7,
             flip_normals: false,
+            axes: Mat3A::IDENTITY,
         };
         for p_ref in [
             Vec3A::new(0.0, 0.0, 4.0),

@@ -573,10 +573,12 @@ impl Builder<'_> {
                 {
                     return Err(p.error("to_world scales the sphere non-uniformly; use a ply/obj mesh for an ellipsoid"));
                 }
+                let linear = glam::DMat3::from_mat4(to_world) / axes[0];
                 Geometry::Sphere(Sphere {
                     center: c.as_vec3().into(),
                     radius: (radius * axes[0]) as f32,
                     flip_normals,
+                    axes: glam::Mat3A::from(linear.as_mat3()),
                 })
             }
             "rectangle" => Geometry::Planar(Planar::new(to_mat4(to_world), flip_normals, false)),
@@ -645,12 +647,13 @@ impl Builder<'_> {
                 p.obj.plugin
             )));
         }
-        // Anisotropy is oriented by ∂p/∂u, which mediareg follows on meshes and
-        // rectangles; Mitsuba's cube, sphere and disk have their own parameterisations.
+        // Anisotropy is oriented by ∂p/∂u, which mediareg follows on meshes, rectangles,
+        // disks and spheres; Mitsuba's cube has its own texture coordinates, which
+        // mediareg's cube lacks.
         let tangent_frame = self.bsdfs[bsdf as usize].is_anisotropic();
-        if tangent_frame && matches!(p.obj.plugin.as_str(), "cube" | "sphere" | "disk") {
+        if tangent_frame && p.obj.plugin == "cube" {
             return Err(p.error(format!(
-                "anisotropic roughness on a \"{}\" shape is not supported yet (it follows the surface's ∂p/∂u, which mediareg has on ply/obj/serialized meshes and rectangles)",
+                "anisotropic roughness on a \"{}\" shape is not supported yet (it follows the surface's ∂p/∂u, which mediareg has on ply/obj/serialized meshes, rectangles, disks and spheres)",
                 p.obj.plugin
             )));
         }

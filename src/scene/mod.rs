@@ -167,10 +167,14 @@ impl Scene {
         let sh_frame = if self.shapes[hit.shape as usize].tangent_frame {
             let dp_du = match &self.geometries[hit.shape as usize] {
                 Geometry::Mesh(m) => m.dp_du(hit.prim, n),
-                // Mitsuba's rectangle: ∂p/∂u = to_world · (2, 0, 0).
+                // Mitsuba's rectangle: ∂p/∂u = to_world · (2, 0, 0); its disk: the radial
+                // direction to_world · (cos φ, sin φ, 0) (zero at the centre).
+                Geometry::Planar(pl) if pl.is_disk => {
+                    let l = pl.to_local.transform_point3a(p);
+                    pl.to_world.transform_vector3a(Vec3A::new(l.x, l.y, 0.0))
+                }
                 Geometry::Planar(pl) => pl.to_world.transform_vector3a(Vec3A::X),
-                // Refused when the scene is built (no ∂p/∂u here).
-                Geometry::Sphere(_) => Vec3A::ZERO,
+                Geometry::Sphere(s) => s.dp_du(p),
             };
             Frame::with_tangent(sh_n, dp_du)
         } else {
