@@ -270,6 +270,16 @@ fn anisotropic_comparison_detects_a_turned_sphere_frame() {
     );
 }
 
+/// Power: the same for the disk (its radial ∂p/∂u).
+#[test]
+fn anisotropic_comparison_detects_a_turned_disk_frame() {
+    let c = check_anisotropic(&[("disk_u", "0.4"), ("disk_v", "0.03")], 75);
+    assert!(
+        !c.passed,
+        "the disk's anisotropy turned by 90° went undetected: {c}"
+    );
+}
+
 /// The `spot` scene, at SPP_SPOT: light reaches the far floor only by rare bounces off
 /// the sphere, and at 64 spp per chunk those heavy-tailed pixels gave 15–34 outliers
 /// (33 allowed) over four seeds.
