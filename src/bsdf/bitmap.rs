@@ -80,9 +80,7 @@ impl Bitmap {
 
     #[inline]
     pub fn eval(&self, uv: Vec2) -> Vec3 {
-        let [r0, r1] = self.to_uv;
-        let u = r0[0] * uv.x + r0[1] * uv.y + r0[2];
-        let v = r1[0] * uv.x + r1[1] * uv.y + r1[2];
+        let Vec2 { x: u, y: v } = super::texture::apply_to_uv(&self.to_uv, uv);
         let (px, py) = (u * self.width as f32, v * self.height as f32);
         match self.filter {
             FilterType::Nearest => self.texel(px.floor() as i64, py.floor() as i64),

@@ -9,6 +9,16 @@ use glam::{Vec2, Vec3};
 
 use super::bitmap::Bitmap;
 
+/// Mitsuba's `to_uv` (a 2D affine map, rows (a, b, tx) and (c, d, ty)) applied to `uv`.
+#[inline]
+pub fn apply_to_uv(to_uv: &[[f32; 3]; 2], uv: Vec2) -> Vec2 {
+    let [r0, r1] = to_uv;
+    Vec2::new(
+        r0[0] * uv.x + r0[1] * uv.y + r0[2],
+        r1[0] * uv.x + r1[1] * uv.y + r1[2],
+    )
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub enum Texture {
     Constant(Vec3),
@@ -30,10 +40,9 @@ impl Texture {
             Texture::Checkerboard {
                 color0,
                 color1,
-                to_uv: [r0, r1],
+                to_uv,
             } => {
-                let u = r0[0] * uv.x + r0[1] * uv.y + r0[2];
-                let v = r1[0] * uv.x + r1[1] * uv.y + r1[2];
+                let Vec2 { x: u, y: v } = apply_to_uv(to_uv, uv);
                 if (u - u.floor() > 0.5) == (v - v.floor() > 0.5) {
                     *color0
                 } else {

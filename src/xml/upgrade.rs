@@ -68,16 +68,14 @@ pub fn from_v1(
     };
     if obj.kind == ObjectKind::Medium && obj.plugin == "homogeneous" {
         if let Some(p) = obj.props.iter().find(|p| p.name == "material") {
-            return err_at(
+            return Err(SceneError::at(
                 &p.loc,
                 format!(
                     "{}: the Mitsuba 0.6 material presets (measured scattering tables) are not supported",
                     obj.label()
                 ),
             )
-            .map_err(|e: SceneError| {
-                e.with_hint("give sigmaS and sigmaA (or sigma_t and albedo) instead")
-            });
+            .with_hint("give sigmaS and sigmaA (or sigma_t and albedo) instead"));
         }
         if let Some(i) = obj.props.iter().position(|p| p.name == "density") {
             if obj.props.iter().any(|p| p.name == "scale") {
