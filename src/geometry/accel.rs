@@ -1,5 +1,6 @@
-//! One compressed wide BVH (obvhs CWBVH) over every primitive of the scene: each
-//! triangle of each mesh, and each analytic shape as a single primitive.
+//! One compressed wide BVH (obvhs CWBVH) over every triangle of the scene, with the
+//! analytic shapes tested one by one beside it when there are few of them, else in it
+//! as one primitive each.
 
 use std::time::Duration;
 
@@ -92,17 +93,43 @@ fn traversal_ray(o: Vec3A, d: Vec3A, tmax: f32) -> (BvhRay, f32) {
 /// limit stays well below that.
 const BRUTE_FORCE_PRIMS: usize = 4;
 
+/// Up to this many analytic shapes are tested one by one beside the BVH, which then
+/// holds triangles only: its leaf test reads one contiguous triangle, without first
+/// looking up what kind of primitive it is (a cache miss per candidate on a large mesh).
+/// More of them go into the BVH with the triangles.
+const SEPARATE_ANALYTIC: usize = 16;
+
 pub struct Accel {
     bvh: CwBvh,
     /// Primitive `i` of the traversal (`bvh.primitive_indices` already applied).
     prims: Vec<PrimRef>,
     /// Its triangle, when it is one (zeros for analytic shapes).
     triangles: Vec<LeafTriangle>,
+    /// Analytic shapes tested beside the BVH (when there are few; see
+    /// [`SEPARATE_ANALYTIC`]): their shape indices.
+    analytic: Vec<u32>,
+    /// Whether the BVH holds analytic shapes too (else triangles only).
+    mixed: bool,
     pub bounds: Bounds,
 }
 
 impl Accel {
     pub fn build(shapes: &[&Geometry]) -> Accel {
+        let n_analytic = shapes
+            .iter()
+            .filter(|g| !matches!(g, Geometry::Mesh(_)))
+            .count();
+        let n_triangles: usize = shapes
+            .iter()
+            .map(|g| match g {
+                Geometry::Mesh(m) => m.triangles.len(),
+                _ => 0,
+            })
+            .sum();
+        // Few primitives in all are tested one by one (see BRUTE_FORCE_PRIMS), in the
+        // BVH's primitive list; else few analytic shapes are kept out of the BVH.
+        let mixed = n_analytic + n_triangles <= BRUTE_FORCE_PRIMS || n_analytic > SEPARATE_ANALYTIC;
+        let mut analytic = Vec::new();
         let mut prims = Vec::new();
         let mut aabbs = Vec::new();
         let mut bounds = Bounds::EMPTY;
@@ -125,8 +152,13 @@ impl Accel {
                         bounds = bounds.union(&b);
                     }
                 }
-                Geometry::Sphere(s) => {
-                    let b = s.bounds();
+                Geometry::Sphere(_) | Geometry::Planar(_) => {
+                    let b = g.bounds();
+                    bounds = bounds.union(&b);
+                    if !mixed {
+                        analytic.push(si as u32);
+                        continue;
+                    }
                     prims.push(PrimRef {
                         shape: si as u32,
                         index: ANALYTIC,
@@ -135,19 +167,6 @@ impl Accel {
                         min: b.min,
                         max: b.max,
                     });
-                    bounds = bounds.union(&b);
-                }
-                Geometry::Planar(p) => {
-                    let b = p.bounds();
-                    prims.push(PrimRef {
-                        shape: si as u32,
-                        index: ANALYTIC,
-                    });
-                    aabbs.push(Aabb {
-                        min: b.min,
-                        max: b.max,
-                    });
-                    bounds = bounds.union(&b);
                 }
             }
         }
@@ -197,6 +216,8 @@ impl Accel {
             bvh,
             prims,
             triangles,
+            analytic,
+            mixed,
             bounds,
         }
     }
@@ -215,9 +236,21 @@ impl Accel {
         if p.index != ANALYTIC {
             return self.triangles[i].intersect(o, d, tmax);
         }
-        match &shapes[p.shape as usize] {
-            Geometry::Sphere(s) => s.intersect(o, d, tmax).map(|t| (t, 0.0, 0.0)),
-            Geometry::Planar(pl) => pl.intersect(o, d, tmax).map(|t| (t, 0.0, 0.0)),
+        Self::analytic_intersect(shapes, p.shape, o, d, tmax).map(|t| (t, 0.0, 0.0))
+    }
+
+    /// The hit of the ray with analytic shape `shape`, if closer than `tmax`.
+    #[inline(always)]
+    fn analytic_intersect(
+        shapes: &[Geometry],
+        shape: u32,
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+    ) -> Option<f32> {
+        match &shapes[shape as usize] {
+            Geometry::Sphere(s) => s.intersect(o, d, tmax),
+            Geometry::Planar(pl) => pl.intersect(o, d, tmax),
             Geometry::Mesh(_) => None,
         }
     }
@@ -225,12 +258,25 @@ impl Accel {
     /// Closest hit along `o + t d`, 0 < t < tmax.
     #[inline]
     pub fn intersect(&self, shapes: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let mut t_best = tmax;
+        // The analytic shapes first: a hit among them shortens the BVH's ray.
+        for &shape in &self.analytic {
+            if let Some(t) = Self::analytic_intersect(shapes, shape, o, d, t_best) {
+                t_best = t;
+                best = Some(Hit {
+                    t,
+                    shape,
+                    prim: 0,
+                    u: 0.0,
+                    v: 0.0,
+                });
+            }
+        }
         if self.prims.is_empty() {
-            return None;
+            return best;
         }
         if self.prims.len() <= BRUTE_FORCE_PRIMS {
-            let mut best: Option<Hit> = None;
-            let mut t_best = tmax;
             for i in 0..self.prims.len() {
                 if let Some((t, u, v)) = self.prim_intersect(shapes, i, o, d, t_best) {
                     t_best = t;
@@ -239,19 +285,34 @@ impl Accel {
             }
             return best;
         }
-        let (ray, back) = traversal_ray(o, d, tmax);
-        let mut best: Option<Hit> = None;
+        let (ray, back) = traversal_ray(o, d, t_best);
         let mut rh = RayHit::none();
-        self.bvh.ray_traverse(ray, &mut rh, |r, id| {
-            match self.prim_intersect(shapes, id, o, d, r.tmax - back) {
-                Some((t, u, v)) => {
-                    best = Some(self.hit(id, t, u, v));
-                    t + back
+        let mut best_prim = None;
+        if self.mixed {
+            self.bvh.ray_traverse(ray, &mut rh, |r, id| {
+                match self.prim_intersect(shapes, id, o, d, r.tmax - back) {
+                    Some((t, u, v)) => {
+                        best_prim = Some((id, t, u, v));
+                        t + back
+                    }
+                    None => f32::INFINITY,
                 }
-                None => f32::INFINITY,
-            }
-        });
-        best
+            });
+        } else {
+            self.bvh.ray_traverse(ray, &mut rh, |r, id| {
+                match self.triangles[id].intersect(o, d, r.tmax - back) {
+                    Some((t, u, v)) => {
+                        best_prim = Some((id, t, u, v));
+                        t + back
+                    }
+                    None => f32::INFINITY,
+                }
+            });
+        }
+        match best_prim {
+            Some((id, t, u, v)) => Some(self.hit(id, t, u, v)),
+            None => best,
+        }
     }
 
     #[inline(always)]
@@ -269,6 +330,13 @@ impl Accel {
     /// Whether anything blocks `o + t d` for 0 < t < tmax.
     #[inline]
     pub fn occluded(&self, shapes: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> bool {
+        if self
+            .analytic
+            .iter()
+            .any(|&shape| Self::analytic_intersect(shapes, shape, o, d, tmax).is_some())
+        {
+            return true;
+        }
         if self.prims.is_empty() {
             return false;
         }
@@ -278,8 +346,13 @@ impl Accel {
         }
         let (ray, back) = traversal_ray(o, d, tmax);
         !self.bvh.ray_traverse_miss(ray, |r, id| {
-            self.prim_intersect(shapes, id, o, d, r.tmax - back)
-                .map_or(f32::INFINITY, |h| h.0 + back)
+            let t = r.tmax - back;
+            let hit = if self.mixed {
+                self.prim_intersect(shapes, id, o, d, t)
+            } else {
+                self.triangles[id].intersect(o, d, t)
+            };
+            hit.map_or(f32::INFINITY, |h| h.0 + back)
         })
     }
 }

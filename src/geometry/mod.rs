@@ -1,6 +1,7 @@
 //! Rays, local frames, shapes and the acceleration structure.
 
 pub mod accel;
+pub mod clearance;
 pub mod mesh;
 pub mod serialized;
 pub mod shape;

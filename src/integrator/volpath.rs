@@ -188,7 +188,13 @@ pub fn sample(
         if let Some(mi) = medium {
             let m: &HomogeneousMedium = &scene.media[mi as usize];
             let t = m.sample_distance(hero, rng.next_1d());
-            si = scene.intersect(ray_o, ray_d, t.min(ray_tmax));
+            // Within the clearance no surface can be hit: the cast's answer is known.
+            let clearance = scene.clearance.at(ray_o);
+            si = if t < clearance {
+                None
+            } else {
+                scene.intersect(ray_o, ray_d, t.min(ray_tmax))
+            };
             match si {
                 Some(h) => {
                     // Passed the whole segment: f = T, p_c = T_c.
@@ -247,7 +253,27 @@ pub fn sample(
                     if let Some(es) = e.sample_direction(p, u, &scene.geometries, &scene.bsphere) {
                         let phase_val = m.phase.eval(ray_d.dot(es.d));
                         let dist = (es.p - p).length() * (1.0 - SHADOW_EPSILON);
-                        let tr = shadow_transmittance(scene, p, es.d, dist, medium);
+                        // Russian roulette on the shadow ray by the bound on what it can
+                        // carry: it runs at least min(clearance, dist) in this medium, so
+                        // T ≤ q = e^{−min_c σ_t,c · min(clearance, dist)}. Cast with
+                        // probability q, weighted 1/q: the estimate stays unbiased and,
+                        // as T/q ≤ 1, never exceeds the exact one's bound (at most the
+                        // variance of Mitsuba's 0-or-1 transmittance estimate).
+                        // The clearance of p (p lies within the flight's clearance less t).
+                        let sigma_min = m.sigma_t.min_element();
+                        let q = if sigma_min > 0.0 {
+                            let free = (clearance - t).max(scene.clearance.at(p));
+                            (-sigma_min * dist.min(free)).exp()
+                        } else {
+                            1.0
+                        };
+                        let tr = if q >= 1.0 {
+                            shadow_transmittance(scene, p, es.d, dist, medium)
+                        } else if q > 0.0 && rng.next_1d() < q {
+                            shadow_transmittance(scene, p, es.d, dist, medium) / q
+                        } else {
+                            Vec3::ZERO
+                        };
                         if tr != Vec3::ZERO {
                             let w = if es.delta {
                                 1.0

@@ -22,9 +22,11 @@ use crate::emitter::envmap::EnvMap;
 use crate::emitter::{BSphere, Emitter, Spot};
 use crate::error::{err_at, Result, SceneError};
 use crate::geometry::accel::Accel;
+use crate::geometry::clearance::Clearance;
 use crate::geometry::mesh::{cube, read_obj, read_ply, TriangleMesh};
 use crate::geometry::serialized::read_serialized;
 use crate::geometry::shape::{Geometry, Planar, Sphere};
+use crate::geometry::Bounds;
 use crate::geometry::RAY_EPSILON;
 use crate::medium::{HomogeneousMedium, Phase};
 use crate::scene::spectrum::SpectrumUse;
@@ -142,6 +144,23 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
 
     let refs: Vec<&Geometry> = b.geometries.iter().collect();
     let accel = Accel::build(&refs);
+    let clearance = if b.media.is_empty() || integrator.kind != IntegratorKind::Volpath {
+        Clearance::none()
+    } else {
+        // Media lie inside the shapes that have an interior medium, unless a medium is
+        // outside some shape or around the camera: then it may fill the whole scene.
+        let unbounded = camera_medium.is_some() || b.shapes.iter().any(|s| s.exterior.is_some());
+        let region = if unbounded {
+            accel.bounds
+        } else {
+            b.shapes
+                .iter()
+                .zip(&b.geometries)
+                .filter(|(s, _)| s.interior.is_some())
+                .fold(Bounds::EMPTY, |r, (_, g)| r.union(&g.bounds()))
+        };
+        Clearance::build(&b.geometries, region, accel.bounds)
+    };
     // Mitsuba's bounding sphere of the scene's bounding box, padded by RayEpsilon.
     let bsphere = if accel.bounds.is_empty() {
         BSphere {
@@ -174,6 +193,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         environment: b.environment,
         media: b.media,
         accel,
+        clearance,
         bsphere,
         offset_scale,
         warnings: b.warnings,

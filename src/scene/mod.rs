@@ -12,6 +12,7 @@ use glam::{Vec2, Vec3A};
 use crate::bsdf::Bsdf;
 use crate::emitter::{BSphere, Emitter};
 use crate::geometry::accel::{Accel, Hit};
+use crate::geometry::clearance::Clearance;
 use crate::geometry::shape::Geometry;
 use crate::geometry::Frame;
 use crate::medium::HomogeneousMedium;
@@ -65,6 +66,9 @@ pub struct Scene {
     pub environment: Option<u32>,
     pub media: Vec<HomogeneousMedium>,
     pub accel: Accel,
+    /// Lower bounds on the distance to the nearest surface (built for scenes with
+    /// media, where free flights and shadow rays use them; none otherwise).
+    pub clearance: Clearance,
     pub bsphere: BSphere,
     /// The scene's size: the largest half-extent of its bounding box (1 when empty).
     /// Spawned rays are offset relative to it (see [`crate::geometry::offset_point`]).
