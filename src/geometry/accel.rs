@@ -69,6 +69,9 @@ pub struct Hit {
     pub prim: u32,
     pub u: f32,
     pub v: f32,
+    /// The triangle's place in the accelerator's own copy ([`Accel::triangle_surface`]),
+    /// `u32::MAX` for analytic shapes.
+    pub leaf: u32,
 }
 
 /// obvhs's CWBVH node test clamps a box's entry distance to an absolute 1e-4
@@ -270,6 +273,7 @@ impl Accel {
                     prim: 0,
                     u: 0.0,
                     v: 0.0,
+                    leaf: u32::MAX,
                 });
             }
         }
@@ -324,7 +328,24 @@ impl Accel {
             prim: if p.index == ANALYTIC { 0 } else { p.index },
             u,
             v,
+            leaf: if p.index == ANALYTIC {
+                u32::MAX
+            } else {
+                i as u32
+            },
         }
+    }
+
+    /// The point at barycentrics (u, v) of a hit triangle and its unit geometric normal
+    /// (p1 − p0) × (p2 − p0), from the copy the hit test has just read: no lookups in
+    /// the mesh (where a surface needs no shading frame, see `Scene::intersect`).
+    #[inline]
+    pub fn triangle_surface(&self, leaf: u32, u: f32, v: f32) -> (Vec3A, Vec3A) {
+        let t = &self.triangles[leaf as usize];
+        (
+            t.p0 + t.e1 * u + t.e2 * v,
+            t.e1.cross(t.e2).normalize_or_zero(),
+        )
     }
 
     /// Whether anything blocks `o + t d` for 0 < t < tmax.

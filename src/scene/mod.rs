@@ -144,7 +144,21 @@ impl Scene {
     }
 
     fn interaction(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> SurfaceInteraction {
+        let info = &self.shapes[hit.shape as usize];
         let (p, n, sh_n, uv) = match &self.geometries[hit.shape as usize] {
+            // A null boundary that emits nothing: the integrators read its point and
+            // geometric normal only (which side is crossed), so the mesh's own arrays
+            // (indices, positions, normals, uvs: cache misses on a large mesh) are not
+            // read.
+            Geometry::Mesh(m)
+                if hit.leaf != u32::MAX
+                    && info.emitter.is_none()
+                    && matches!(self.bsdfs[info.bsdf as usize], Bsdf::Null) =>
+            {
+                let (p, n) = self.accel.triangle_surface(hit.leaf, hit.u, hit.v);
+                let n = if m.flip_normals { -n } else { n };
+                (p, n, n, Vec2::ZERO)
+            }
             Geometry::Mesh(m) => {
                 let (p, n, sh_n) = m.surface(hit.prim, hit.u, hit.v);
                 (p, n, sh_n, m.uv(hit.prim, hit.u, hit.v))
@@ -168,7 +182,7 @@ impl Scene {
                 (p, pl.normal, pl.normal, uv)
             }
         };
-        let sh_frame = if self.shapes[hit.shape as usize].tangent_frame {
+        let sh_frame = if info.tangent_frame {
             let dp_du = match &self.geometries[hit.shape as usize] {
                 Geometry::Mesh(m) => m.dp_du(hit.prim, n),
                 // Mitsuba's rectangle: ∂p/∂u = to_world · (2, 0, 0); its disk: the radial
