@@ -23,6 +23,11 @@
 //!   over channels (one-sample MIS over channels, balance heuristic, as in pbrt-v4):
 //!   `f / ((1/3) Σ_c p_c) = β / mean(r)` with `β = f / p_hero`, `r_c = p_c / p_hero`.
 //!   For grey σ_t, r = (1,1,1) and this is Mitsuba's estimator exactly.
+//! * Shadow rays from medium vertices are cast with probability q, a bound on their
+//!   transmittance from the scene's clearance (`geometry::clearance`), and weighted 1/q.
+//!
+//! Free flights shorter than the clearance of their origin are not cast: no surface can
+//! be that close, so the cast's answer is known.
 //!
 //! Albedo gradient (the paper, Sec. 4.1, Eq. 6–8). Sampling depends on σ_t only, so a
 //! path's pdf does not depend on the albedo α of the chosen medium, and its weight
