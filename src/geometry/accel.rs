@@ -242,6 +242,23 @@ impl Accel {
         Self::analytic_intersect(shapes, p.shape, o, d, tmax).map(|t| (t, 0.0, 0.0))
     }
 
+    /// The hit of the ray with BVH primitive `i`: a triangle, unless the BVH is mixed.
+    #[inline(always)]
+    fn leaf_intersect(
+        &self,
+        shapes: &[Geometry],
+        i: usize,
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+    ) -> Option<(f32, f32, f32)> {
+        if self.mixed {
+            self.prim_intersect(shapes, i, o, d, tmax)
+        } else {
+            self.triangles[i].intersect(o, d, tmax)
+        }
+    }
+
     /// The hit of the ray with analytic shape `shape`, if closer than `tmax`.
     #[inline(always)]
     fn analytic_intersect(
@@ -292,27 +309,15 @@ impl Accel {
         let (ray, back) = traversal_ray(o, d, t_best);
         let mut rh = RayHit::none();
         let mut best_prim = None;
-        if self.mixed {
-            self.bvh.ray_traverse(ray, &mut rh, |r, id| {
-                match self.prim_intersect(shapes, id, o, d, r.tmax - back) {
-                    Some((t, u, v)) => {
-                        best_prim = Some((id, t, u, v));
-                        t + back
-                    }
-                    None => f32::INFINITY,
+        self.bvh.ray_traverse(ray, &mut rh, |r, id| {
+            match self.leaf_intersect(shapes, id, o, d, r.tmax - back) {
+                Some((t, u, v)) => {
+                    best_prim = Some((id, t, u, v));
+                    t + back
                 }
-            });
-        } else {
-            self.bvh.ray_traverse(ray, &mut rh, |r, id| {
-                match self.triangles[id].intersect(o, d, r.tmax - back) {
-                    Some((t, u, v)) => {
-                        best_prim = Some((id, t, u, v));
-                        t + back
-                    }
-                    None => f32::INFINITY,
-                }
-            });
-        }
+                None => f32::INFINITY,
+            }
+        });
         match best_prim {
             Some((id, t, u, v)) => Some(self.hit(id, t, u, v)),
             None => best,
@@ -367,13 +372,95 @@ impl Accel {
         }
         let (ray, back) = traversal_ray(o, d, tmax);
         !self.bvh.ray_traverse_miss(ray, |r, id| {
-            let t = r.tmax - back;
-            let hit = if self.mixed {
-                self.prim_intersect(shapes, id, o, d, t)
-            } else {
-                self.triangles[id].intersect(o, d, t)
-            };
-            hit.map_or(f32::INFINITY, |h| h.0 + back)
+            self.leaf_intersect(shapes, id, o, d, r.tmax - back)
+                .map_or(f32::INFINITY, |h| h.0 + back)
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::mesh::{cube, TriangleMesh};
+    use crate::geometry::shape::{square_to_uniform_sphere, Planar, Sphere};
+    use crate::integrator::sampler::Pcg32;
+    use glam::{Mat3A, Mat4, Vec3};
+    use std::path::Path;
+
+    /// Two cubes, `spheres` spheres and a rectangle.
+    fn scene(spheres: usize) -> Vec<Geometry> {
+        let mut g = Vec::new();
+        for k in 0..2 {
+            let to_world = Mat4::from_translation(Vec3::new(k as f32 * 3.0 - 1.5, 0.0, 0.0))
+                * Mat4::from_rotation_y(0.3 + k as f32);
+            let m = TriangleMesh::new(cube(), &to_world, true, false, Path::new("cube"));
+            g.push(Geometry::Mesh(m.expect("a valid cube")));
+        }
+        for k in 0..spheres {
+            g.push(Geometry::Sphere(Sphere {
+                center: Vec3A::new(-1.0 + 0.3 * k as f32, 1.2, 0.2 * k as f32),
+                radius: 0.25,
+                flip_normals: false,
+                axes: Mat3A::IDENTITY,
+            }));
+        }
+        let floor = Mat4::from_translation(Vec3::new(0.0, -1.2, 0.0))
+            * Mat4::from_rotation_x(-1.5)
+            * Mat4::from_scale(Vec3::splat(3.0));
+        g.push(Geometry::Planar(Planar::new(floor, false, false)));
+        g
+    }
+
+    /// The nearest hit by testing every primitive: (shape, distance).
+    fn brute_force(g: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> Option<(u32, f32)> {
+        let mut best = None;
+        let mut t_best = tmax;
+        for (si, s) in g.iter().enumerate() {
+            let t = match s {
+                Geometry::Mesh(m) => (0..m.triangles.len() as u32)
+                    .filter_map(|t| {
+                        let [p0, p1, p2] = m.vertices(t);
+                        let tri = LeafTriangle {
+                            p0,
+                            e1: p1 - p0,
+                            e2: p2 - p0,
+                        };
+                        tri.intersect(o, d, t_best).map(|h| h.0)
+                    })
+                    .reduce(f32::min),
+                Geometry::Sphere(sp) => sp.intersect(o, d, t_best),
+                Geometry::Planar(p) => p.intersect(o, d, t_best),
+            };
+            if let Some(t) = t.filter(|&t| t < t_best) {
+                t_best = t;
+                best = Some((si as u32, t));
+            }
+        }
+        best
+    }
+
+    /// Analytic shapes beside the BVH (3 spheres) and inside it (20 spheres) give the
+    /// hits of testing every primitive.
+    #[test]
+    fn closest_hit_and_occlusion_match_brute_force() {
+        for spheres in [3, SEPARATE_ANALYTIC + 4] {
+            let g = scene(spheres);
+            let refs: Vec<&Geometry> = g.iter().collect();
+            let accel = Accel::build(&refs);
+            assert_eq!(accel.mixed, spheres > SEPARATE_ANALYTIC);
+            let mut rng = Pcg32::new(5, spheres as u64);
+            let mut hits = 0;
+            for i in 0..20_000 {
+                let o = Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d()) * 5.0
+                    - Vec3A::splat(2.5);
+                let d = square_to_uniform_sphere(rng.next_2d());
+                let tmax = if i % 2 == 0 { 1.0 } else { f32::INFINITY };
+                let got = accel.intersect(&g, o, d, tmax).map(|h| (h.shape, h.t));
+                assert_eq!(got, brute_force(&g, o, d, tmax), "ray {o} {d} {tmax}");
+                assert_eq!(accel.occluded(&g, o, d, tmax), got.is_some());
+                hits += got.is_some() as u32;
+            }
+            assert!(hits > 2_000, "only {hits} rays hit something");
+        }
     }
 }

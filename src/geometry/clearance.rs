@@ -46,6 +46,9 @@ pub struct Clearance {
     inv_h: f32,
     /// The length a stored unit stands for: `h / QUANTUM`.
     unit: f32,
+    /// The bound everywhere when there is no grid: 0 (nothing known), or ∞ (a scene
+    /// without surfaces).
+    no_grid: f32,
     dims: [usize; 3],
     /// Per cell, x fastest: the bound in units of `unit`.
     cells: Vec<u8>,
@@ -61,6 +64,7 @@ impl Clearance {
             origin: Vec3A::ZERO,
             inv_h: 0.0,
             unit: 0.0,
+            no_grid: 0.0,
             dims: [0; 3],
             cells: Vec::new(),
             scene: Bounds::EMPTY,
@@ -74,7 +78,7 @@ impl Clearance {
         if geometries.is_empty() || scene.is_empty() {
             // Nothing to hit anywhere.
             return Clearance {
-                unit: f32::INFINITY,
+                no_grid: f32::INFINITY,
                 ..Clearance::none()
             };
         }
@@ -119,6 +123,7 @@ impl Clearance {
             origin,
             inv_h: 1.0 / h,
             unit: h / QUANTUM * (1.0 - 1e-4),
+            no_grid: 0.0,
             dims,
             cells,
             scene: if covers_scene { scene } else { Bounds::EMPTY },
@@ -129,11 +134,7 @@ impl Clearance {
     #[inline]
     pub fn at(&self, p: Vec3A) -> f32 {
         if self.cells.is_empty() {
-            return if self.unit == f32::INFINITY {
-                f32::INFINITY
-            } else {
-                0.0
-            };
+            return self.no_grid;
         }
         let c = (p - self.origin) * self.inv_h;
         let (x, y, z) = (c.x.floor(), c.y.floor(), c.z.floor());
