@@ -225,6 +225,11 @@ impl Accel {
         }
     }
 
+    /// Whether a ray cast traverses the BVH (else it tests a few primitives one by one).
+    pub fn traverses_bvh(&self) -> bool {
+        self.prims.len() > BRUTE_FORCE_PRIMS
+    }
+
     /// The hit of the ray with traversal primitive `i`, if closer than `tmax`.
     #[inline(always)]
     fn prim_intersect(

@@ -266,8 +266,8 @@ pub fn sample(
                         // variance of Mitsuba's 0-or-1 transmittance estimate).
                         // The clearance of p (p lies within the flight's clearance less t).
                         let sigma_min = m.sigma_t.min_element();
-                        let q = if sigma_min > 0.0 {
-                            let free = (clearance - t).max(scene.clearance.at(p));
+                        let free = (clearance - t).max(scene.clearance.at(p));
+                        let q = if sigma_min > 0.0 && free > 0.0 {
                             (-sigma_min * dist.min(free)).exp()
                         } else {
                             1.0
