@@ -32,7 +32,7 @@ use glam::Vec3A;
 use super::shape::Geometry;
 use super::Bounds;
 
-/// Cells along the longest axis of the scene's bounding box.
+/// Cells along the longest axis of the grid's region (where the media are).
 const CELLS_LONGEST_AXIS: f32 = 128.0;
 /// Stored bounds are multiples of `h / QUANTUM` (rounded down), up to 255 of them.
 const QUANTUM: f32 = 4.0;
@@ -41,7 +41,7 @@ const QUANTUM: f32 = 4.0;
 const SMALL_SPAN: usize = 2;
 
 pub struct Clearance {
-    /// The grid's corner (one cell outside the scene's box on every side).
+    /// The grid's corner (one cell outside the region's box on every side).
     origin: Vec3A,
     inv_h: f32,
     /// The length a stored unit stands for: `h / QUANTUM`.
@@ -191,6 +191,17 @@ impl Grid {
     /// Marks every cell of `b`'s range for which `hits(centre)` holds (all of them for
     /// a small range).
     fn mark_box(&mut self, b: &Bounds, hits: impl Fn(Vec3A) -> bool) {
+        // A box wholly outside the grid marks nothing: the grid covers only part of the
+        // scene then, and its outer layer is marked for what lies beyond.
+        let far = self.origin
+            + Vec3A::new(
+                self.dims[0] as f32,
+                self.dims[1] as f32,
+                self.dims[2] as f32,
+            ) * self.h;
+        if b.max.cmplt(self.origin).any() || b.min.cmpgt(far).any() {
+            return;
+        }
         let (lo, hi) = self.range(b);
         let small = (0..3).all(|a| hi[a] - lo[a] < SMALL_SPAN);
         for z in lo[2]..=hi[2] {
