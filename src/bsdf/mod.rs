@@ -16,6 +16,8 @@ use std::f32::consts::FRAC_1_PI;
 
 use glam::{Vec2, Vec3, Vec3A};
 
+use crate::geometry::accel::ShadowPass;
+
 pub use conductor::{Conductor, RoughConductor};
 pub use dielectric::{Dielectric, RoughDielectric, ThinDielectric};
 pub use plastic::{Plastic, RoughPlastic};
@@ -125,6 +127,20 @@ impl Bsdf {
                 }
             }
             _ => Vec3::ZERO,
+        }
+    }
+
+    /// How this surface treats a shadow ray, as [`Bsdf::null_transmission`] decides it:
+    /// wholly (`null`), blocking (0 at every angle), or partly.
+    pub fn shadow_pass(&self) -> ShadowPass {
+        match self {
+            Bsdf::Null => ShadowPass::Passes,
+            Bsdf::ThinDielectric(_) => ShadowPass::Partial,
+            Bsdf::TwoSided(b) => match (b[0].shadow_pass(), b[1].shadow_pass()) {
+                (ShadowPass::Blocks, ShadowPass::Blocks) => ShadowPass::Blocks,
+                _ => ShadowPass::Partial,
+            },
+            _ => ShadowPass::Blocks,
         }
     }
 

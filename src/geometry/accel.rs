@@ -62,7 +62,7 @@ impl LeafTriangle {
 
 /// The closest hit of a ray: which shape and primitive, at which distance, and the
 /// triangle barycentrics (zero for analytic shapes).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct Hit {
     pub t: f32,
     pub shape: u32,
@@ -73,6 +73,31 @@ pub struct Hit {
     /// `u32::MAX` for analytic shapes.
     pub leaf: u32,
 }
+
+/// How a surface treats a shadow ray (see [`Accel::crossings`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShadowPass {
+    /// Stops it (every BSDF but the two below).
+    Blocks,
+    /// Lets it through unchanged (`null`).
+    Passes,
+    /// Lets part of it through, by the angle (`thindielectric`).
+    Partial,
+}
+
+/// The answer of [`Accel::crossings`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Crossings {
+    Blocked,
+    /// This many pass-through hits, in `out[..n]`.
+    Found(usize),
+    /// The caller must cast one ray per crossing.
+    Unsupported,
+}
+
+/// Crossings one shadow traversal collects before it gives up (see
+/// [`Accel::crossings`]).
+pub const MAX_CROSSINGS: usize = 16;
 
 /// obvhs's CWBVH node test clamps a box's entry distance to an absolute 1e-4
 /// (`cwbvh::node::EPSILON`): a box the ray leaves within 1e-4 of its origin is culled.
@@ -356,6 +381,65 @@ impl Accel {
             t.p0 + t.e1 * u + t.e2 * v,
             t.e1.cross(t.e2).normalize_or_zero(),
         )
+    }
+
+    /// Every surface a shadow ray crosses on `o + t d`, 0 < t < tmax, found in one
+    /// traversal instead of one closest-hit cast per crossing (a ray out of a mesh
+    /// boundary crosses it about twice on the Bunny). `pass[shape]` says how each shape
+    /// treats the ray. The hits go into `out` in the order found (not sorted).
+    ///
+    /// A blocking surface ends the traversal at once: whatever else lies on the ray,
+    /// nothing gets through. Only triangle BVHs with blocking analytic shapes beside
+    /// them are handled; the rest (a few primitives, a mixed BVH, an analytic or
+    /// thin-dielectric surface the ray passes through, more than [`MAX_CROSSINGS`])
+    /// answers [`Crossings::Unsupported`], and the caller casts one ray per crossing.
+    pub fn crossings(
+        &self,
+        shapes: &[Geometry],
+        pass: &[ShadowPass],
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+        out: &mut [Hit; MAX_CROSSINGS],
+    ) -> Crossings {
+        if self.mixed || !self.traverses_bvh() {
+            return Crossings::Unsupported;
+        }
+        for &shape in &self.analytic {
+            if Self::analytic_intersect(shapes, shape, o, d, tmax).is_some() {
+                return match pass[shape as usize] {
+                    ShadowPass::Blocks => Crossings::Blocked,
+                    _ => Crossings::Unsupported,
+                };
+            }
+        }
+        let (ray, _) = traversal_ray(o, d, tmax);
+        let mut n = 0;
+        let mut answer = None;
+        self.bvh.ray_traverse(ray, &mut RayHit::none(), |_, id| {
+            let Some((t, u, v)) = self.triangles[id].intersect(o, d, tmax) else {
+                return f32::INFINITY;
+            };
+            let hit = self.hit(id, t, u, v);
+            match pass[hit.shape as usize] {
+                ShadowPass::Passes if n < MAX_CROSSINGS => {
+                    out[n] = hit;
+                    n += 1;
+                    // Not a closer hit for the traversal: the ray's extent stays.
+                    f32::INFINITY
+                }
+                // A distance of 0 culls every remaining node: the traversal ends.
+                ShadowPass::Blocks => {
+                    answer = Some(Crossings::Blocked);
+                    0.0
+                }
+                _ => {
+                    answer = Some(Crossings::Unsupported);
+                    0.0
+                }
+            }
+        });
+        answer.unwrap_or(Crossings::Found(n))
     }
 
     /// Whether anything blocks `o + t d` for 0 < t < tmax.

@@ -191,7 +191,13 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
             1.0
         }
     };
+    let shadow_pass = b
+        .shapes
+        .iter()
+        .map(|info| b.bsdfs[info.bsdf as usize].shadow_pass())
+        .collect();
     Ok(Scene {
+        shadow_pass,
         geometries: b.geometries,
         shapes: b.shapes,
         bsdfs: b.bsdfs,

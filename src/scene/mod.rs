@@ -11,7 +11,7 @@ use glam::{Vec2, Vec3A};
 
 use crate::bsdf::Bsdf;
 use crate::emitter::{BSphere, Emitter};
-use crate::geometry::accel::{Accel, Hit};
+use crate::geometry::accel::{Accel, Hit, ShadowPass};
 use crate::geometry::clearance::Clearance;
 use crate::geometry::shape::Geometry;
 use crate::geometry::Frame;
@@ -66,6 +66,8 @@ pub struct Scene {
     pub environment: Option<u32>,
     pub media: Vec<HomogeneousMedium>,
     pub accel: Accel,
+    /// How each shape treats shadow rays (by its BSDF), for [`Accel::crossings`].
+    pub shadow_pass: Vec<ShadowPass>,
     /// Lower bounds on the distance to the nearest surface (built for scenes with
     /// media, where free flights and shadow rays use them; none otherwise).
     pub clearance: Clearance,
@@ -143,7 +145,8 @@ impl Scene {
         self.accel.occluded(&self.geometries, o, d, tmax)
     }
 
-    fn interaction(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> SurfaceInteraction {
+    /// The local geometry at `hit`, a hit of the ray (o, d).
+    pub fn interaction(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> SurfaceInteraction {
         let info = &self.shapes[hit.shape as usize];
         let (p, n, sh_n, uv) = match &self.geometries[hit.shape as usize] {
             // A null boundary that emits nothing: the integrators read its point and
