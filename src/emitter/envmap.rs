@@ -123,6 +123,25 @@ impl EnvMap {
         (gx.max(0.0), w * (self.height - 1) as f32)
     }
 
+    /// The mean radiance over the sphere of directions (rows weighted by sin θ, the
+    /// solid angle they cover).
+    pub fn mean_radiance(&self) -> Vec3 {
+        let w1 = self.width + 1;
+        let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
+        for y in 0..self.height {
+            let sin_theta = (y as f32 / (self.height - 1).max(1) as f32 * PI).sin();
+            for x in 0..self.width {
+                sum += self.data[y * w1 + x] * sin_theta;
+            }
+            weight += sin_theta * self.width as f32;
+        }
+        if weight > 0.0 {
+            sum / weight * self.scale
+        } else {
+            Vec3::ZERO
+        }
+    }
+
     /// Radiance arriving along a ray travelling in world direction `d`.
     pub fn eval(&self, d: Vec3A) -> Vec3 {
         let (u, w) = Self::uv(self.to_local * Vec3::from(d));

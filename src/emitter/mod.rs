@@ -5,6 +5,7 @@
 //! distance to travel, the solid-angle pdf (1 for Dirac lights) and `Le / pdf`.
 
 pub mod envmap;
+pub mod selection;
 
 use std::f32::consts::PI;
 

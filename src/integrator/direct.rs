@@ -32,7 +32,6 @@ pub fn sample(
     emitter_samples: u32,
     bsdf_samples: u32,
 ) -> Vec3 {
-    let n_emitters = scene.emitters.len() as f32;
     let total = (emitter_samples + bsdf_samples) as f32;
     let (frac_lum, frac_bsdf) = (emitter_samples as f32 / total, bsdf_samples as f32 / total);
     let si = scene.intersect(o, d, tmax);
@@ -52,7 +51,7 @@ pub fn sample(
     let wi = h.sh_frame.to_local(-d);
 
     // ---- Emitter sampling ----
-    if bsdf.is_smooth() && n_emitters > 0.0 {
+    if bsdf.is_smooth() && !scene.emitters.is_empty() {
         for _ in 0..emitter_samples {
             let visible = |o, d, dist| Vec3::splat(!scene.occluded(o, d, dist) as u8 as f32);
             let Some(ls) = sample_light_at_surface(scene, &h, wi, bsdf, rng.next_2d(), visible)
@@ -91,7 +90,8 @@ pub fn sample(
         let em_pdf = if bs.delta {
             0.0
         } else {
-            e.pdf_direction(h.p, p_end, n_end, wo, &scene.geometries) / n_emitters
+            e.pdf_direction(h.p, p_end, n_end, wo, &scene.geometries)
+                * scene.emitter_selection.pdf(h.p, ei as usize)
         };
         let w = mis_weight(bs.pdf * frac_bsdf, em_pdf * frac_lum) / bsdf_samples as f32;
         result += bs.weight * e.eval(n_end, wo) * w;

@@ -34,15 +34,6 @@ fn block_size(width: usize, height: usize) -> usize {
         .unwrap_or(8)
 }
 
-/// Uniform emitter selection that reuses the sample (Mitsuba's `Scene::sample_emitter`):
-/// the index and the rescaled sample.
-#[inline]
-pub(crate) fn select_emitter(n: usize, u: Vec2) -> (usize, Vec2) {
-    let x = u.x * n as f32;
-    let idx = (x as usize).min(n - 1);
-    (idx, Vec2::new(x - idx as f32, u.y))
-}
-
 /// Emitter sampling at a surface point, before MIS: the emitter-sampled direction's
 /// BSDF-weighted radiance and both pdfs.
 pub(crate) struct SurfaceLightSample {
@@ -55,8 +46,9 @@ pub(crate) struct SurfaceLightSample {
     pub delta: bool,
 }
 
-/// Picks an emitter uniformly with `u` (Mitsuba's `sample_emitter_direction`), samples
-/// a direction to it from the surface point `h`, and traces the shadow ray: `visibility`
+/// Picks an emitter with `u` (`Scene::emitter_selection`; Mitsuba's
+/// `sample_emitter_direction` picks uniformly), samples a direction to it from the
+/// surface point `h`, and traces the shadow ray: `visibility`
 /// (from the offset origin, unit direction, distance already shortened by
 /// ShadowEpsilon) returns 1 (path, direct), or the transmittance of the media crossed
 /// (volpath). None when nothing arrives (no emitter, back-facing, zero BSDF, blocked).
@@ -68,11 +60,10 @@ pub(crate) fn sample_light_at_surface(
     u: Vec2,
     visibility: impl FnOnce(Vec3A, Vec3A, f32) -> Vec3,
 ) -> Option<SurfaceLightSample> {
-    let n = scene.emitters.len();
-    if n == 0 {
+    if scene.emitters.is_empty() {
         return None;
     }
-    let (idx, u) = select_emitter(n, u);
+    let (idx, u, p_select) = scene.emitter_selection.select(h.p, u);
     let es = scene.emitters[idx].sample_direction(h.p, u, &scene.geometries, &scene.bsphere)?;
     let (f, bsdf_pdf) = bsdf.eval_pdf(wi, h.sh_frame.to_local(es.d), h.uv);
     if f == Vec3::ZERO {
@@ -90,8 +81,8 @@ pub(crate) fn sample_light_at_surface(
         return None;
     }
     Some(SurfaceLightSample {
-        value: f * es.weight * tr * n as f32,
-        emitter_pdf: es.pdf / n as f32,
+        value: f * es.weight * tr / p_select,
+        emitter_pdf: es.pdf * p_select,
         bsdf_pdf,
         delta: es.delta,
     })

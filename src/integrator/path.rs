@@ -57,8 +57,6 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
     } else {
         scene.intersect(o, d, tmax)
     };
-    let n_emitters = scene.emitters.len() as f32;
-
     loop {
         // ---- Emission seen by this ray (area light hit, or the environment) ----
         let emitter = match &si {
@@ -74,7 +72,8 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
             let em_pdf = if prev.delta {
                 0.0
             } else {
-                e.pdf_direction(prev.p, p_end, n_end, ray_d, &scene.geometries) / n_emitters
+                e.pdf_direction(prev.p, p_end, n_end, ray_d, &scene.geometries)
+                    * scene.emitter_selection.pdf(prev.p, ei as usize)
             };
             result += throughput * le * mis_weight(prev.bsdf_pdf, em_pdf);
         }

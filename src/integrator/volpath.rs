@@ -40,7 +40,7 @@ use glam::{Vec3, Vec3A};
 
 use super::path::mis_weight;
 use super::sampler::Pcg32;
-use super::{sample_light_at_surface, select_emitter, skip_emitters};
+use super::{sample_light_at_surface, skip_emitters};
 use crate::geometry::accel::{Crossings, Hit, MAX_CROSSINGS};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::medium::{transmittance, HomogeneousMedium};
@@ -302,7 +302,7 @@ pub fn sample(
                 let p = ray_o + ray_d * t;
                 // ---- Emitter sampling from the medium vertex ----
                 if m.sample_emitters && n_emitters > 0 {
-                    let (idx, u) = select_emitter(n_emitters, rng.next_2d());
+                    let (idx, u, p_select) = scene.emitter_selection.select(p, rng.next_2d());
                     let e = &scene.emitters[idx];
                     if let Some(es) = e.sample_direction(p, u, &scene.geometries, &scene.bsphere) {
                         let phase_val = m.phase.eval(ray_d.dot(es.d));
@@ -332,9 +332,9 @@ pub fn sample(
                             let w = if es.delta {
                                 1.0
                             } else {
-                                mis_weight(es.pdf / n_emitters as f32, phase_val)
+                                mis_weight(es.pdf * p_select, phase_val)
                             };
-                            let x = phase_val * es.weight * tr * n_emitters as f32 * w;
+                            let x = phase_val * es.weight * tr / p_select * w;
                             result += beta * x;
                             d_result += x * match gradient {
                                 Gradient::AlbedoIgnoringNeeVertex(_) => d_beta_before,
@@ -378,7 +378,7 @@ pub fn sample(
                     1.0
                 } else {
                     let em_pdf = e.pdf_direction(last.p, p_end, n_end, ray_d, &scene.geometries)
-                        / n_emitters as f32;
+                        * scene.emitter_selection.pdf(last.p, ei as usize);
                     mis_weight(last.pdf, em_pdf)
                 };
                 result += beta * le * w;

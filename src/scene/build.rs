@@ -19,6 +19,7 @@ use crate::bsdf::{
     ThinDielectric,
 };
 use crate::emitter::envmap::EnvMap;
+use crate::emitter::selection::EmitterSelection;
 use crate::emitter::{BSphere, Emitter, Spot};
 use crate::error::{err_at, Result, SceneError};
 use crate::geometry::accel::Accel;
@@ -196,8 +197,10 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         .iter()
         .map(|info| b.bsdfs[info.bsdf as usize].shadow_pass())
         .collect();
+    let emitter_selection = EmitterSelection::new(&b.emitters, &b.geometries);
     Ok(Scene {
         shadow_pass,
+        emitter_selection,
         geometries: b.geometries,
         shapes: b.shapes,
         bsdfs: b.bsdfs,

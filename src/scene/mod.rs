@@ -10,6 +10,7 @@ pub mod spectrum;
 use glam::{Vec2, Vec3A};
 
 use crate::bsdf::Bsdf;
+use crate::emitter::selection::EmitterSelection;
 use crate::emitter::{BSphere, Emitter};
 use crate::geometry::accel::{Accel, Hit, ShadowPass};
 use crate::geometry::clearance::Clearance;
@@ -62,6 +63,8 @@ pub struct Scene {
     pub shapes: Vec<ShapeInfo>,
     pub bsdfs: Vec<Bsdf>,
     pub emitters: Vec<Emitter>,
+    /// Which emitter a vertex samples (`emitter::selection`).
+    pub emitter_selection: EmitterSelection,
     /// The environment emitter (a `constant`), seen by rays that miss.
     pub environment: Option<u32>,
     pub media: Vec<HomogeneousMedium>,
