@@ -25,6 +25,9 @@
 //!   For grey σ_t, r = (1,1,1) and this is Mitsuba's estimator exactly.
 //! * Shadow rays from medium vertices are cast with probability q, a bound on their
 //!   transmittance from the scene's clearance (`geometry::clearance`), and weighted 1/q.
+//! * The emitter to sample is picked by an estimate of what each delivers at the vertex
+//!   (`emitter::selection`), not uniformly; emitter hits are MIS-weighted with the same
+//!   probabilities.
 //!
 //! Free flights shorter than the clearance of their origin are not cast: no surface can
 //! be that close, so the cast's answer is known.
