@@ -140,15 +140,12 @@ impl EmitterSelection {
         EmitterSelection { n, estimates }
     }
 
-    /// The selection probabilities at `p`, in the first `n` entries.
+    /// The selection probabilities at `p`, in the first `n` entries (where the choice
+    /// is weighed: `estimates` holds one per emitter).
     #[inline]
     fn probabilities(&self, p: Vec3A) -> [f32; WEIGHED_MAX] {
         let mut w = [0.0f32; WEIGHED_MAX];
         let uniform = 1.0 / self.n as f32;
-        if self.estimates.is_empty() {
-            w[..self.n.min(WEIGHED_MAX)].fill(uniform);
-            return w;
-        }
         let mut total = 0.0;
         for (wi, e) in w.iter_mut().zip(&self.estimates) {
             // A NaN or negative estimate (a degenerate emitter) counts as none.
