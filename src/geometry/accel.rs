@@ -305,6 +305,22 @@ impl Accel {
         }
     }
 
+    /// Every hit of the ray with an analytic shape, 0 < t < tmax, nearest first.
+    #[inline]
+    fn analytic_hits(
+        shapes: &[Geometry],
+        shape: u32,
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+    ) -> [Option<f32>; 2] {
+        match &shapes[shape as usize] {
+            Geometry::Sphere(s) => s.hits_within(o, d, tmax),
+            Geometry::Planar(pl) => [pl.intersect(o, d, tmax), None],
+            Geometry::Mesh(_) => [None, None],
+        }
+    }
+
     /// Closest hit along `o + t d`, 0 < t < tmax.
     #[inline]
     pub fn intersect(&self, shapes: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> Option<Hit> {
@@ -385,14 +401,15 @@ impl Accel {
 
     /// Every surface a shadow ray crosses on `o + t d`, 0 < t < tmax, found in one
     /// traversal instead of one closest-hit cast per crossing (a ray out of a mesh
-    /// boundary crosses it about twice on the Bunny). `pass[shape]` says how each shape
-    /// treats the ray. The hits go into `out` in the order found (not sorted).
+    /// boundary crosses it about twice on the Bunny, a ray out of a sphere once, and
+    /// each cast of the old way ended in a second one to find nothing beyond). `pass[shape]`
+    /// says how each shape treats the ray. The hits go into `out` in the order found
+    /// (not sorted).
     ///
-    /// A blocking surface ends the traversal at once: whatever else lies on the ray,
-    /// nothing gets through. Only triangle BVHs with blocking analytic shapes beside
-    /// them are handled; the rest (a few primitives, a mixed BVH, an analytic or
-    /// thin-dielectric surface the ray passes through, more than [`MAX_CROSSINGS`])
-    /// answers [`Crossings::Unsupported`], and the caller casts one ray per crossing.
+    /// A blocking surface ends the search at once: whatever else lies on the ray,
+    /// nothing gets through. A BVH that holds analytic shapes, a thin-dielectric
+    /// surface the ray passes through and more than [`MAX_CROSSINGS`] crossings answer
+    /// [`Crossings::Unsupported`], and the caller casts one ray per crossing.
     pub fn crossings(
         &self,
         shapes: &[Geometry],
@@ -402,39 +419,68 @@ impl Accel {
         tmax: f32,
         out: &mut [Hit; MAX_CROSSINGS],
     ) -> Crossings {
-        if self.mixed || !self.traverses_bvh() {
+        if self.mixed && self.traverses_bvh() {
             return Crossings::Unsupported;
         }
+        let mut n = 0;
+        // Records a hit; Some(answer) when the search is over.
+        let mut record = |hit: Hit| match pass[hit.shape as usize] {
+            ShadowPass::Passes if n < MAX_CROSSINGS => {
+                out[n] = hit;
+                n += 1;
+                None
+            }
+            ShadowPass::Blocks => Some(Crossings::Blocked),
+            _ => Some(Crossings::Unsupported),
+        };
+        let analytic = |shape: u32, t: f32| Hit {
+            t,
+            shape,
+            prim: 0,
+            u: 0.0,
+            v: 0.0,
+            leaf: u32::MAX,
+        };
         for &shape in &self.analytic {
-            if Self::analytic_intersect(shapes, shape, o, d, tmax).is_some() {
-                return match pass[shape as usize] {
-                    ShadowPass::Blocks => Crossings::Blocked,
-                    _ => Crossings::Unsupported,
-                };
+            for t in Self::analytic_hits(shapes, shape, o, d, tmax)
+                .into_iter()
+                .flatten()
+            {
+                if let Some(answer) = record(analytic(shape, t)) {
+                    return answer;
+                }
             }
         }
+        if !self.traverses_bvh() {
+            for (i, p) in self.prims.iter().enumerate() {
+                let answer = if p.index == ANALYTIC {
+                    Self::analytic_hits(shapes, p.shape, o, d, tmax)
+                        .into_iter()
+                        .flatten()
+                        .find_map(|t| record(analytic(p.shape, t)))
+                } else {
+                    self.triangles[i]
+                        .intersect(o, d, tmax)
+                        .and_then(|(t, u, v)| record(self.hit(i, t, u, v)))
+                };
+                if let Some(answer) = answer {
+                    return answer;
+                }
+            }
+            return Crossings::Found(n);
+        }
         let (ray, _) = traversal_ray(o, d, tmax);
-        let mut n = 0;
         let mut answer = None;
         self.bvh.ray_traverse(ray, &mut RayHit::none(), |_, id| {
             let Some((t, u, v)) = self.triangles[id].intersect(o, d, tmax) else {
                 return f32::INFINITY;
             };
-            let hit = self.hit(id, t, u, v);
-            match pass[hit.shape as usize] {
-                ShadowPass::Passes if n < MAX_CROSSINGS => {
-                    out[n] = hit;
-                    n += 1;
-                    // Not a closer hit for the traversal: the ray's extent stays.
-                    f32::INFINITY
-                }
+            match record(self.hit(id, t, u, v)) {
+                // Not a closer hit for the traversal: the ray's extent stays.
+                None => f32::INFINITY,
                 // A distance of 0 culls every remaining node: the traversal ends.
-                ShadowPass::Blocks => {
-                    answer = Some(Crossings::Blocked);
-                    0.0
-                }
-                _ => {
-                    answer = Some(Crossings::Unsupported);
+                found => {
+                    answer = found;
                     0.0
                 }
             }

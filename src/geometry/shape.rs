@@ -140,9 +140,10 @@ impl Sphere {
         self.axes * Vec3A::new(-local.y, local.x, 0.0)
     }
 
-    /// Ray–sphere intersection in double precision (as Mitsuba does), nearest t > 0.
+    /// Where the line `o + t d` meets the sphere, t0 ≤ t1, in double precision (as
+    /// Mitsuba does); None if it misses.
     #[inline]
-    pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<f32> {
+    fn roots(&self, o: Vec3A, d: Vec3A) -> Option<(f64, f64)> {
         let oc = (o - self.center).as_dvec3();
         let d = d.as_dvec3();
         let a = d.length_squared();
@@ -156,18 +157,27 @@ impl Sphere {
         let sq = disc.sqrt();
         // Numerically stable roots.
         let q = -0.5 * (b + sq.copysign(b));
-        let (mut t0, mut t1) = (q / a, c / q);
-        if t0 > t1 {
-            std::mem::swap(&mut t0, &mut t1);
-        }
+        let (t0, t1) = (q / a, c / q);
+        Some(if t0 > t1 { (t1, t0) } else { (t0, t1) })
+    }
+
+    /// Ray–sphere intersection, nearest t in (0, tmax).
+    #[inline]
+    pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<f32> {
+        let [first, second] = self.hits_within(o, d, tmax);
+        first.or(second)
+    }
+
+    /// Both hits of the ray with t in (0, tmax), nearest first (a ray meets a sphere at
+    /// most twice): what a shadow ray through a `null` sphere crosses.
+    #[inline]
+    pub fn hits_within(&self, o: Vec3A, d: Vec3A, tmax: f32) -> [Option<f32>; 2] {
+        let Some((t0, t1)) = self.roots(o, d) else {
+            return [None, None];
+        };
         let tmax = tmax as f64;
-        if t0 > 0.0 && t0 < tmax {
-            Some(t0 as f32)
-        } else if t1 > 0.0 && t1 < tmax {
-            Some(t1 as f32)
-        } else {
-            None
-        }
+        let within = |t: f64| (t > 0.0 && t < tmax).then_some(t as f32);
+        [within(t0), within(t1)]
     }
 
     pub fn normal_at(&self, p: Vec3A) -> Vec3A {

@@ -454,11 +454,9 @@ mod tests {
     use crate::geometry::shape::square_to_uniform_sphere;
     use crate::scene::build::BuildOverrides;
 
-    /// Two null cubes around media (one chromatic and turned), a blocking cube (in the
-    /// BVH with them) and a blocking sphere beside the BVH.
-    const SCENE: &str = r#"<scene version="3.0.0">
-        <sensor type="perspective"><film type="hdrfilm">
-            <integer name="width" value="4"/><integer name="height" value="4"/></film></sensor>
+    /// Two null cubes around media (one chromatic and turned) and a blocking cube, in
+    /// the BVH together.
+    const CUBES: &str = r#"
         <shape type="cube">
             <transform name="to_world"><scale value="0.5"/><translate x="-1"/></transform>
             <bsdf type="null"/>
@@ -476,18 +474,40 @@ mod tests {
         <shape type="cube">
             <transform name="to_world"><scale value="0.4"/><translate y="1.5"/></transform>
             <bsdf type="diffuse"/>
-        </shape>
+        </shape>"#;
+
+    /// Analytic shapes beside the BVH: a blocking sphere, a null sphere around a medium
+    /// and a null rectangle that bounds no medium (crossing it changes nothing).
+    const ANALYTIC: &str = r#"
         <shape type="sphere">
             <point name="center" x="0" y="-1.5" z="0"/><float name="radius" value="0.4"/>
         </shape>
-    </scene>"#;
+        <shape type="sphere">
+            <point name="center" x="0.9" y="-1" z="1.5"/><float name="radius" value="0.6"/>
+            <bsdf type="null"/>
+            <medium type="homogeneous" name="interior">
+                <float name="sigma_t" value="3"/><float name="albedo" value="0.5"/></medium>
+        </shape>
+        <shape type="rectangle">
+            <transform name="to_world"><scale value="0.5"/><translate x="-1" y="1.2" z="-0.8"/>
+            </transform>
+            <bsdf type="null"/>
+        </shape>"#;
 
-    /// The scene above, written to a file of the test's own (tests run in parallel).
-    fn scene(test: &str) -> Scene {
+    /// A scene of [`ANALYTIC`], after [`CUBES`] if `cubes`, written to a file of the
+    /// test's own (tests run in parallel).
+    fn scene(test: &str, cubes: bool) -> Scene {
+        let xml = format!(
+            r#"<scene version="3.0.0">
+            <sensor type="perspective"><film type="hdrfilm">
+                <integer name="width" value="4"/><integer name="height" value="4"/></film>
+            </sensor>{}{ANALYTIC}</scene>"#,
+            if cubes { CUBES } else { "" }
+        );
         let dir = std::env::temp_dir().join(format!("mediareg_volpath_{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join(format!("{test}.xml"));
-        std::fs::write(&path, SCENE).unwrap();
+        std::fs::write(&path, xml).unwrap();
         crate::load_scene(&path, &Default::default(), &BuildOverrides::default())
             .unwrap_or_else(|e| panic!("{e}"))
     }
@@ -504,106 +524,126 @@ mod tests {
         (t0 < t1).then_some((t0, t1))
     }
 
-    /// The exact transmittance of the shadow ray in [`SCENE`]: the boxes' intervals
-    /// clipped to (0, dist), crossed in order (the medium before the first crossing is
-    /// `medium`, after one the entered cube's or none), 0 if a blocker lies on the way.
-    fn exact(o: Vec3A, d: Vec3A, dist: f32, medium: Option<u32>) -> Vec3 {
-        use glam::{Affine3A, Quat};
-        let sigma = [Vec3::splat(2.0), Vec3::new(1.0, 3.0, 5.0)];
-        let cubes = [
-            Affine3A::from_scale_rotation_translation(
-                Vec3::splat(0.5),
-                Quat::IDENTITY,
-                Vec3::new(-1.0, 0.0, 0.0),
-            ),
-            Affine3A::from_scale_rotation_translation(
-                Vec3::splat(0.6),
-                Quat::from_rotation_y(30f32.to_radians()),
-                Vec3::new(0.8, 0.0, 0.0),
-            ),
-        ];
-        let on_way = |t: f32| t > 0.0 && t < dist;
-        let blocker = Affine3A::from_scale_rotation_translation(
-            Vec3::splat(0.4),
-            Quat::IDENTITY,
-            Vec3::new(0.0, 1.5, 0.0),
-        );
-        if box_interval(blocker.inverse(), o, d).is_some_and(|(a, b)| on_way(a) || on_way(b)) {
-            return Vec3::ZERO;
-        }
-        // The sphere (centre (0, -1.5, 0), radius 0.4): |o + t d − c|² = r².
-        let oc = o - Vec3A::new(0.0, -1.5, 0.0);
-        let (b, c) = (oc.dot(d), oc.length_squared() - 0.16);
+    /// Where the ray o + t d (unit d) is inside the sphere (c, r), if it meets it:
+    /// |o + t d − c|² = r².
+    fn sphere_interval(c: Vec3A, r: f32, o: Vec3A, d: Vec3A) -> Option<(f32, f32)> {
+        let oc = o - c;
+        let (b, c) = (oc.dot(d), oc.length_squared() - r * r);
         let disc = b * b - c;
-        if disc > 0.0 && (on_way(-b - disc.sqrt()) || on_way(-b + disc.sqrt())) {
+        (disc > 0.0).then(|| (-b - disc.sqrt(), -b + disc.sqrt()))
+    }
+
+    /// The exact transmittance of the shadow ray in [`scene`]`(_, cubes)`: the media's
+    /// intervals clipped to (0, dist), crossed in order (the medium before the first
+    /// crossing is `medium`, after one the entered shape's or none), 0 if a blocker lies
+    /// on the way. Media are numbered as the scene numbers them (in file order).
+    fn exact(o: Vec3A, d: Vec3A, dist: f32, medium: Option<u32>, cubes: bool) -> Vec3 {
+        use glam::{Affine3A, Quat};
+        let on_way = |t: f32| t > 0.0 && t < dist;
+        let crosses = |i: Option<(f32, f32)>| i.is_some_and(|(a, b)| on_way(a) || on_way(b));
+        // (interval, σ_t) of each medium, in file order.
+        let mut media = Vec::new();
+        if cubes {
+            let blocker = Affine3A::from_scale_rotation_translation(
+                Vec3::splat(0.4),
+                Quat::IDENTITY,
+                Vec3::new(0.0, 1.5, 0.0),
+            );
+            if crosses(box_interval(blocker.inverse(), o, d)) {
+                return Vec3::ZERO;
+            }
+            let cube = |scale: f32, angle: f32, x: f32| {
+                let q = Quat::from_rotation_y(angle.to_radians());
+                let m =
+                    Affine3A::from_scale_rotation_translation(Vec3::splat(scale), q, Vec3::X * x);
+                box_interval(m.inverse(), o, d)
+            };
+            media.push((cube(0.5, 0.0, -1.0), Vec3::splat(2.0)));
+            media.push((cube(0.6, 30.0, 0.8), Vec3::new(1.0, 3.0, 5.0)));
+        }
+        if crosses(sphere_interval(Vec3A::new(0.0, -1.5, 0.0), 0.4, o, d)) {
             return Vec3::ZERO;
         }
+        let ball = sphere_interval(Vec3A::new(0.9, -1.0, 1.5), 0.6, o, d);
+        media.push((ball, Vec3::splat(3.0)));
         // Crossings: (t, the medium after it).
         let mut crossings = Vec::new();
-        for (k, m) in cubes.iter().enumerate() {
-            if let Some((a, b)) = box_interval(m.inverse(), o, d) {
+        for (k, (interval, _)) in media.iter().enumerate() {
+            if let Some((a, b)) = *interval {
                 crossings.extend(
-                    [(a, Some(k as u32)), (b, None)]
+                    [(a, Some(k)), (b, None)]
                         .into_iter()
                         .filter(|x| on_way(x.0)),
                 );
             }
         }
         crossings.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let (mut depth, mut start, mut current) = (Vec3::ZERO, 0.0, medium);
+        let (mut depth, mut start) = (Vec3::ZERO, 0.0);
+        let mut current = medium.map(|m| m as usize);
         for (t, after) in crossings.into_iter().chain([(dist, None)]) {
             if let Some(m) = current {
-                depth += sigma[m as usize] * (t - start);
+                depth += media[m].1 * (t - start);
             }
             (start, current) = (t, after);
         }
         (-depth).exp()
     }
 
-    /// One traversal for all crossings gives the exact transmittance on random shadow
-    /// rays from inside and outside the media. (One cast per crossing is off where a
-    /// ray grazes a face: its next cast starts at a point moved off the ray along the
-    /// normal, which shifts the following crossing by offset / |cos|.)
+    /// One search for all crossings gives the exact transmittance on random shadow
+    /// rays from inside and outside the media, with a BVH (`cubes`) and without (the
+    /// analytic shapes alone). (One cast per crossing is off where a ray grazes a face:
+    /// its next cast starts at a point moved off the ray along the normal, which shifts
+    /// the following crossing by offset / |cos|.)
     #[test]
     fn crossings_in_one_traversal_give_the_exact_transmittance() {
-        let scene = scene("random_rays");
-        let mut rng = Pcg32::new(7, 3);
-        let (mut blocked, mut multi) = (0, 0);
-        let mut hits = [Hit::default(); MAX_CROSSINGS];
-        for _ in 0..20_000 {
-            let u = Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d());
-            let o = Vec3A::new(-2.0, -2.0, -1.0) + u * Vec3A::new(4.0, 4.0, 2.0);
-            let d = square_to_uniform_sphere(rng.next_2d());
-            let dist = 5.0 * rng.next_1d();
-            // Start in either medium or none (the rules are the same for every start).
-            let medium = [None, Some(0), Some(1)][(rng.next_1d() * 3.0) as usize % 3];
-            let g = &scene.geometries;
-            match scene
-                .accel
-                .crossings(g, &scene.shadow_pass, o, d, dist, &mut hits)
-            {
-                Crossings::Blocked => blocked += 1,
-                Crossings::Found(n) => multi += usize::from(n >= 2),
-                Crossings::Unsupported => panic!("unsupported in a triangle scene"),
+        for cubes in [true, false] {
+            let scene = scene(&format!("random_rays_{cubes}"), cubes);
+            let n_media = scene.media.len();
+            assert_eq!(n_media, if cubes { 3 } else { 1 });
+            // The null sphere's index: after the cubes and the blocking sphere.
+            let ball = if cubes { 4 } else { 1 };
+            let mut rng = Pcg32::new(7, 3);
+            let (mut blocked, mut multi, mut in_ball) = (0, 0, 0);
+            let mut hits = [Hit::default(); MAX_CROSSINGS];
+            for _ in 0..20_000 {
+                let u = Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d());
+                let o = Vec3A::new(-2.0, -2.0, -1.0) + u * Vec3A::new(4.0, 4.0, 3.0);
+                let d = square_to_uniform_sphere(rng.next_2d());
+                let dist = 5.0 * rng.next_1d();
+                // Start in any medium or none (the rules are the same for every start).
+                let k = (rng.next_1d() * (n_media + 1) as f32) as usize % (n_media + 1);
+                let medium = (k < n_media).then_some(k as u32);
+                let g = &scene.geometries;
+                match scene
+                    .accel
+                    .crossings(g, &scene.shadow_pass, o, d, dist, &mut hits)
+                {
+                    Crossings::Blocked => blocked += 1,
+                    Crossings::Found(n) => {
+                        multi += usize::from(n >= 2);
+                        in_ball += usize::from(hits[..n].iter().any(|h| h.shape == ball));
+                    }
+                    Crossings::Unsupported => panic!("unsupported without thin dielectrics"),
+                }
+                let tr = shadow_transmittance(&scene, o, d, dist, medium);
+                let want = exact(o, d, dist, medium, cubes);
+                assert!(
+                    (tr - want).abs().max_element() <= 1e-4 * want.max_element() + 1e-6,
+                    "o {o} d {d} dist {dist} medium {medium:?}: {tr} vs {want}"
+                );
             }
-            let tr = shadow_transmittance(&scene, o, d, dist, medium);
-            let want = exact(o, d, dist, medium);
             assert!(
-                (tr - want).abs().max_element() <= 1e-4 * want.max_element() + 1e-6,
-                "o {o} d {d} dist {dist} medium {medium:?}: {tr} vs {want}"
+                blocked > 300 && multi > 300 && in_ball > 500,
+                "{blocked} blocked, {multi} with 2+ crossings, {in_ball} through the ball"
             );
         }
-        assert!(
-            blocked > 1000 && multi > 1000,
-            "{blocked} blocked, {multi} with 2+ crossings"
-        );
     }
 
     /// A ray through the diagonal shared by two triangles of a cube's face may hit both
     /// (it does here): the face is still crossed once.
     #[test]
     fn a_crossing_found_twice_on_a_shared_edge_counts_once() {
-        let scene = scene("shared_edge");
+        let scene = scene("shared_edge", true);
         let mut repeats = 0;
         // The first cube spans x in [-1.5, -0.5], y and z in [-0.5, 0.5]; σ_t = 2. Rays
         // along z through its faces z = ±0.5 on either diagonal, and the centre.
