@@ -113,7 +113,7 @@ fn through_crossings(
             tr *= transmittance(scene.media[m as usize].sigma_t, h.t - start);
         }
         start = h.t;
-        let n = scene.interaction(o, d, h).n;
+        let n = scene.normal_at_hit(o, d, h);
         medium = medium_after(&scene.shapes[h.shape as usize], n, d, medium);
     }
     if let Some(m) = medium {

@@ -148,6 +148,25 @@ impl Scene {
         self.accel.occluded(&self.geometries, o, d, tmax)
     }
 
+    /// The geometric normal (after `flip_normals`) at `hit`, a hit of the ray (o, d):
+    /// all a shadow ray needs of a surface it passes through (which side it crosses).
+    #[inline]
+    pub fn normal_at_hit(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> Vec3A {
+        match &self.geometries[hit.shape as usize] {
+            Geometry::Mesh(m) => {
+                // A triangle's hit always names its place in the accelerator's copy.
+                let n = self.accel.triangle_surface(hit.leaf, hit.u, hit.v).1;
+                if m.flip_normals {
+                    -n
+                } else {
+                    n
+                }
+            }
+            Geometry::Sphere(s) => s.normal_at(o + d * hit.t),
+            Geometry::Planar(pl) => pl.normal,
+        }
+    }
+
     /// The local geometry at `hit`, a hit of the ray (o, d).
     pub fn interaction(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> SurfaceInteraction {
         let info = &self.shapes[hit.shape as usize];
@@ -171,9 +190,9 @@ impl Scene {
             }
             Geometry::Sphere(s) => {
                 // Project onto the sphere to remove the error of o + t d.
-                let p0 = o + d * hit.t;
-                let p = s.center + (p0 - s.center).normalize_or_zero() * s.radius;
-                let n = s.normal_at(p);
+                let radial = (o + d * hit.t - s.center).normalize_or_zero();
+                let p = s.center + radial * s.radius;
+                let n = if s.flip_normals { -radial } else { radial };
                 (p, n, n, Vec2::ZERO)
             }
             Geometry::Planar(pl) => {
