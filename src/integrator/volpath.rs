@@ -28,6 +28,12 @@
 //! * The emitter to sample is picked by an estimate of what each delivers at the vertex
 //!   (`emitter::selection`), not uniformly; emitter hits are MIS-weighted with the same
 //!   probabilities.
+//! * An area emitter at the end of a medium segment is counted in expectation: the
+//!   flight passes to it with probability T_hero and then weighs its emission by
+//!   β T / mean(r T), so β T (T_hero / mean(r T)) L_e is added for every path, and not
+//!   again when the flight does pass (Mitsuba adds L_e or nothing: the variance of a
+//!   light seen through fog). Only segments whose ray may reach an area emitter's
+//!   bounding sphere within the medium are cast in full for this.
 //!
 //! Free flights shorter than the clearance of their origin are not cast: no surface can
 //! be that close, so the cast's answer is known.
@@ -47,7 +53,7 @@ use super::{sample_light_at_surface, skip_emitters};
 use crate::geometry::accel::{Crossings, Hit, MAX_CROSSINGS};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::medium::{transmittance, HomogeneousMedium};
-use crate::scene::{Scene, ShapeInfo};
+use crate::scene::{Scene, ShapeInfo, SurfaceInteraction};
 
 /// Null-boundary crossings a shadow ray may make before it is treated as blocked
 /// (guards against a degenerate scene trapping the ray).
@@ -156,12 +162,102 @@ fn shadow_transmittance_stepwise(
     Vec3::ZERO
 }
 
+/// Emitter sampling from the medium point `p` of `m` (in `medium`), light leaving it
+/// against `d_in`: phase · L · T / p_select, MIS-weighted (power heuristic) against
+/// phase sampling; zero when nothing arrives. `free` is a distance `p` is known to lie
+/// from every surface (0 if none is known), for the shadow ray's roulette.
+#[inline]
+fn medium_emitter_sample(
+    scene: &Scene,
+    m: &HomogeneousMedium,
+    medium: Option<u32>,
+    p: Vec3A,
+    d_in: Vec3A,
+    free: f32,
+    rng: &mut Pcg32,
+) -> Vec3 {
+    if !m.sample_emitters || scene.emitters.is_empty() {
+        return Vec3::ZERO;
+    }
+    let (idx, u, p_select) = scene.emitter_selection.select(p, rng.next_2d());
+    let e = &scene.emitters[idx];
+    let Some(es) = e.sample_direction(p, u, &scene.geometries, &scene.bsphere) else {
+        return Vec3::ZERO;
+    };
+    let phase_val = m.phase.eval(d_in.dot(es.d));
+    let dist = (es.p - p).length() * (1.0 - SHADOW_EPSILON);
+    // Russian roulette on the shadow ray by the bound on what it can carry: it runs at
+    // least min(clearance, dist) in this medium, so T ≤ q = e^{−min_c σ_t,c · min(clearance,
+    // dist)}. Cast with probability q, weighted 1/q: the estimate stays unbiased and, as
+    // T/q ≤ 1, never exceeds the exact one's bound (at most the variance of Mitsuba's
+    // 0-or-1 transmittance estimate).
+    let sigma_min = m.sigma_t.min_element();
+    let free = free.max(scene.clearance.at(p));
+    let q = if sigma_min > 0.0 && free > 0.0 {
+        (-sigma_min * dist.min(free)).exp()
+    } else {
+        1.0
+    };
+    let tr = if q >= 1.0 {
+        shadow_transmittance(scene, p, es.d, dist, medium)
+    } else if q > 0.0 && rng.next_1d() < q {
+        shadow_transmittance(scene, p, es.d, dist, medium) / q
+    } else {
+        return Vec3::ZERO;
+    };
+    if tr == Vec3::ZERO {
+        return Vec3::ZERO;
+    }
+    let w = if es.delta {
+        1.0
+    } else {
+        mis_weight(es.pdf * p_select, phase_val)
+    };
+    phase_val * es.weight * tr / p_select * w
+}
+
 /// Where the path last scattered (for MIS of emitter hits).
 #[derive(Clone, Copy)]
 struct LastScatter {
     p: Vec3A,
     /// Solid-angle pdf of the direction sampled there (BSDF or phase function).
     pdf: f32,
+}
+
+/// The emission the path sees at the end of its ray (`hit`, or the environment where
+/// None) along `ray_d`, MIS-weighted against emitter sampling at the vertex it last
+/// scattered at (full weight at depth 0 and after a specular chain); zero where
+/// nothing emits or emitters are hidden.
+#[inline]
+fn emission_seen(
+    scene: &Scene,
+    hit: Option<&SurfaceInteraction>,
+    ray_d: Vec3A,
+    depth: u32,
+    specular_chain: bool,
+    last: &LastScatter,
+) -> Vec3 {
+    let emitter = match hit {
+        Some(h) => scene.shapes[h.shape as usize].emitter,
+        None => scene.environment,
+    };
+    let Some(ei) = emitter else {
+        return Vec3::ZERO;
+    };
+    if depth == 0 && scene.integrator.hide_emitters {
+        return Vec3::ZERO;
+    }
+    let e = &scene.emitters[ei as usize];
+    let (p_end, n_end) = hit.map_or((last.p, Vec3A::ZERO), |h| (h.p, h.sh_frame.n));
+    let le = e.eval(n_end, ray_d);
+    let w = if depth == 0 || specular_chain {
+        1.0
+    } else {
+        let em_pdf = e.pdf_direction(last.p, p_end, n_end, ray_d, &scene.geometries)
+            * scene.emitter_selection.pdf(last.p, ei as usize);
+        mis_weight(last.pdf, em_pdf)
+    };
+    le * w
 }
 
 /// Which derivative to estimate beside the radiance.
@@ -238,6 +334,8 @@ pub fn sample(
         }
 
         // ---- Free flight through the current medium ----
+        // Whether the emission at this ray's end is already counted (in expectation).
+        let mut emission_counted = false;
         let mut si;
         let mut in_medium = false;
         // dβ without this vertex's own α (for the power-test variant only).
@@ -247,7 +345,29 @@ pub fn sample(
             let t = m.sample_distance(hero, rng.next_1d());
             // Within the clearance no surface can be hit: the cast's answer is known.
             let clearance = scene.clearance.at(ray_o);
-            si = if t < clearance {
+            // Where the ray may end on an area emitter, it is cast in full (not only up
+            // to t, nor skipped within the clearance), so the emission there can be
+            // counted in expectation.
+            si = if scene.may_see_area_emitter(mi, ray_o, ray_d) {
+                let full = scene.intersect(ray_o, ray_d, ray_tmax);
+                // ---- Emission at the segment's end, in expectation ----
+                // The flight passes to the hit with probability T_hero(h.t) and then weighs the
+                // emission by β T / mean(r T) (see the module comment): count that
+                // product now instead of its 0-or-1 sample, and not again at the hit.
+                if let Some(h) = &full {
+                    let le = emission_seen(scene, Some(h), ray_d, depth, specular_chain, &last);
+                    if le != Vec3::ZERO {
+                        let tr = m.transmittance(h.t);
+                        let pass = tr * (tr[hero] / mean(r_u * tr));
+                        if pass.is_finite() {
+                            result += beta * pass * le;
+                            d_result += d_beta * pass * le;
+                        }
+                        emission_counted = true;
+                    }
+                }
+                full.filter(|h| h.t < t)
+            } else if t < clearance {
                 None
             } else {
                 scene.intersect(ray_o, ray_d, t.min(ray_tmax))
@@ -304,47 +424,14 @@ pub fn sample(
                 }
                 let p = ray_o + ray_d * t;
                 // ---- Emitter sampling from the medium vertex ----
-                if m.sample_emitters && n_emitters > 0 {
-                    let (idx, u, p_select) = scene.emitter_selection.select(p, rng.next_2d());
-                    let e = &scene.emitters[idx];
-                    if let Some(es) = e.sample_direction(p, u, &scene.geometries, &scene.bsphere) {
-                        let phase_val = m.phase.eval(ray_d.dot(es.d));
-                        let dist = (es.p - p).length() * (1.0 - SHADOW_EPSILON);
-                        // Russian roulette on the shadow ray by the bound on what it can
-                        // carry: it runs at least min(clearance, dist) in this medium, so
-                        // T ≤ q = e^{−min_c σ_t,c · min(clearance, dist)}. Cast with
-                        // probability q, weighted 1/q: the estimate stays unbiased and,
-                        // as T/q ≤ 1, never exceeds the exact one's bound (at most the
-                        // variance of Mitsuba's 0-or-1 transmittance estimate).
-                        // The clearance of p (p lies within the flight's clearance less t).
-                        let sigma_min = m.sigma_t.min_element();
-                        let free = (clearance - t).max(scene.clearance.at(p));
-                        let q = if sigma_min > 0.0 && free > 0.0 {
-                            (-sigma_min * dist.min(free)).exp()
-                        } else {
-                            1.0
-                        };
-                        let tr = if q >= 1.0 {
-                            shadow_transmittance(scene, p, es.d, dist, medium)
-                        } else if q > 0.0 && rng.next_1d() < q {
-                            shadow_transmittance(scene, p, es.d, dist, medium) / q
-                        } else {
-                            Vec3::ZERO
-                        };
-                        if tr != Vec3::ZERO {
-                            let w = if es.delta {
-                                1.0
-                            } else {
-                                mis_weight(es.pdf * p_select, phase_val)
-                            };
-                            let x = phase_val * es.weight * tr / p_select * w;
-                            result += beta * x;
-                            d_result += x * match gradient {
-                                Gradient::AlbedoIgnoringNeeVertex(_) => d_beta_before,
-                                _ => d_beta,
-                            };
-                        }
-                    }
+                // p lies within the flight's clearance less t.
+                let x = medium_emitter_sample(scene, m, medium, p, ray_d, clearance - t, rng);
+                if x != Vec3::ZERO {
+                    result += beta * x;
+                    d_result += x * match gradient {
+                        Gradient::AlbedoIgnoringNeeVertex(_) => d_beta_before,
+                        _ => d_beta,
+                    };
                 }
                 specular_chain = !m.sample_emitters;
                 // ---- Phase function sampling ----
@@ -367,26 +454,10 @@ pub fn sample(
                 scene.intersect(ray_o, ray_d, ray_tmax)
             };
         }
-        let emitter = match &si {
-            Some(h) => scene.shapes[h.shape as usize].emitter,
-            None => scene.environment,
-        };
-        if let Some(ei) = emitter {
-            if !(depth == 0 && s.hide_emitters) {
-                let e = &scene.emitters[ei as usize];
-                let (p_end, n_end) = si.map_or((last.p, Vec3A::ZERO), |h| (h.p, h.sh_frame.n));
-                let le = e.eval(n_end, ray_d);
-                let count_direct = depth == 0 || specular_chain;
-                let w = if count_direct {
-                    1.0
-                } else {
-                    let em_pdf = e.pdf_direction(last.p, p_end, n_end, ray_d, &scene.geometries)
-                        * scene.emitter_selection.pdf(last.p, ei as usize);
-                    mis_weight(last.pdf, em_pdf)
-                };
-                result += beta * le * w;
-                d_result += d_beta * le * w;
-            }
+        if !emission_counted {
+            let le = emission_seen(scene, si.as_ref(), ray_d, depth, specular_chain, &last);
+            result += beta * le;
+            d_result += d_beta * le;
         }
         let Some(h) = si else { break };
         let info = &scene.shapes[h.shape as usize];
@@ -674,5 +745,50 @@ mod tests {
             repeats > 0,
             "no ray hit a face twice: the case is not tested"
         );
+    }
+
+    /// An area emitter seen through a medium that only absorbs (albedo 0): a path
+    /// either passes to it or dies at its collision, so the estimate of Mitsuba's
+    /// estimator is L or 0 at random. Counted in expectation, every sample is the exact
+    /// L e^{−σ_t t}.
+    #[test]
+    fn an_emitter_seen_through_a_medium_is_counted_in_expectation() {
+        let xml = r#"<scene version="3.0.0">
+            <medium type="homogeneous" id="fog">
+                <float name="sigma_t" value="0.7"/><float name="albedo" value="0"/></medium>
+            <sensor type="perspective"><ref id="fog"/><film type="hdrfilm">
+                <integer name="width" value="4"/><integer name="height" value="4"/></film>
+            </sensor>
+            <shape type="sphere"><float name="radius" value="10"/><bsdf type="null"/>
+                <ref name="interior" id="fog"/></shape>
+            <shape type="sphere"><point name="center" x="0" y="0" z="3"/>
+                <float name="radius" value="0.5"/>
+                <emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter></shape>
+        </scene>"#;
+        let dir = std::env::temp_dir().join(format!("mediareg_volpath_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("emitter_in_fog.xml");
+        std::fs::write(&path, xml).unwrap();
+        let scene = crate::load_scene(&path, &Default::default(), &BuildOverrides::default())
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert!(scene.camera_medium.is_some());
+        let le = Vec3::new(2.0, 3.0, 4.0);
+        let o = Vec3A::ZERO;
+        for x in [0.0f32, 0.1, -0.15] {
+            let d = Vec3A::new(x, 0.0, 1.0).normalize();
+            // The near hit of o + t d with the sphere (c, 0.5): t = b − √(b² − |c|² + r²).
+            let c = Vec3A::new(0.0, 0.0, 3.0);
+            let b = d.dot(c);
+            let t = b - (b * b - c.length_squared() + 0.25).sqrt();
+            let want = le * (-0.7 * t).exp();
+            for k in 0..200 {
+                let mut rng = Pcg32::new(11, k);
+                let (l, _) = sample(&scene, o, d, f32::INFINITY, &mut rng, Gradient::None);
+                assert!(
+                    (l - want).abs().max_element() <= 1e-4 * want.max_element(),
+                    "direction {d}, sample {k}: {l} vs {want}"
+                );
+            }
+        }
     }
 }

@@ -198,9 +198,12 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         .map(|info| b.bsdfs[info.bsdf as usize].shadow_pass())
         .collect();
     let emitter_selection = EmitterSelection::new(&b.emitters, &b.geometries);
+    let area_emitter_bounds =
+        area_emitters_within_media(&b.emitters, &b.geometries, &b.shapes, b.media.len());
     Ok(Scene {
         shadow_pass,
         emitter_selection,
+        area_emitter_bounds,
         geometries: b.geometries,
         shapes: b.shapes,
         bsdfs: b.bsdfs,
@@ -1323,4 +1326,44 @@ fn ior(p: &Props, name: &str, default: &str) -> Result<f64> {
         return Err(p.error(format!("{name} = {v}: must be a finite index > 0")));
     }
     Ok(v)
+}
+
+/// Per medium, a bounding sphere (centre, radius²) of each area emitter a ray in it may
+/// reach without leaving it: every one where the medium is unbounded (outside some
+/// shape, or bounded by none, as a camera's medium may be), else those whose box meets
+/// the box of the shapes it fills.
+fn area_emitters_within_media(
+    emitters: &[Emitter],
+    geometries: &[Geometry],
+    shapes: &[ShapeInfo],
+    n_media: usize,
+) -> Vec<Vec<(Vec3A, f32)>> {
+    let area: Vec<Bounds> = emitters
+        .iter()
+        .filter_map(|e| match e {
+            Emitter::Area { shape, .. } => Some(geometries[*shape as usize].bounds()),
+            _ => None,
+        })
+        .collect();
+    (0..n_media as u32)
+        .map(|mi| {
+            let inside = |s: &&ShapeInfo| s.interior == Some(mi);
+            let unbounded =
+                shapes.iter().any(|s| s.exterior == Some(mi)) || !shapes.iter().any(|s| inside(&s));
+            let region = shapes
+                .iter()
+                .zip(geometries)
+                .filter(|(s, _)| inside(s))
+                .fold(Bounds::EMPTY, |r, (_, g)| r.union(&g.bounds()));
+            area.iter()
+                .filter(|e| {
+                    unbounded || (e.min.cmple(region.max).all() && e.max.cmpge(region.min).all())
+                })
+                .map(|e| {
+                    let r = (e.max - e.min).length() * 0.5 * (1.0 + 1e-4);
+                    ((e.min + e.max) * 0.5, r * r)
+                })
+                .collect()
+        })
+        .collect()
 }

@@ -65,6 +65,9 @@ pub struct Scene {
     pub emitters: Vec<Emitter>,
     /// Which emitter a vertex samples (`emitter::selection`).
     pub emitter_selection: EmitterSelection,
+    /// Per medium, a bounding sphere (centre, radius²) of each area emitter a ray in
+    /// that medium may reach before it leaves it.
+    pub area_emitter_bounds: Vec<Vec<(Vec3A, f32)>>,
     /// The environment emitter (a `constant`), seen by rays that miss.
     pub environment: Option<u32>,
     pub media: Vec<HomogeneousMedium>,
@@ -146,6 +149,22 @@ impl Scene {
     #[inline]
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32) -> bool {
         self.accel.occluded(&self.geometries, o, d, tmax)
+    }
+
+    /// Whether the ray o + t d (unit d, t > 0) in `medium` may meet an area emitter
+    /// before it leaves the medium: it passes through the bounding sphere of one within
+    /// the medium's reach.
+    #[inline]
+    pub fn may_see_area_emitter(&self, medium: u32, o: Vec3A, d: Vec3A) -> bool {
+        self.area_emitter_bounds[medium as usize]
+            .iter()
+            .any(|&(c, r2)| {
+                let oc = c - o;
+                let along = oc.dot(d);
+                let dist2 = oc.length_squared();
+                // Inside the sphere, or ahead of o with the line within r of c.
+                dist2 <= r2 || (along > 0.0 && dist2 - along * along <= r2)
+            })
     }
 
     /// The geometric normal (after `flip_normals`) at `hit`, a hit of the ray (o, d):
