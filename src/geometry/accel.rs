@@ -298,11 +298,8 @@ impl Accel {
         d: Vec3A,
         tmax: f32,
     ) -> Option<f32> {
-        match &shapes[shape as usize] {
-            Geometry::Sphere(s) => s.intersect(o, d, tmax),
-            Geometry::Planar(pl) => pl.intersect(o, d, tmax),
-            Geometry::Mesh(_) => None,
-        }
+        let [first, second] = Self::analytic_hits(shapes, shape, o, d, tmax);
+        first.or(second)
     }
 
     /// Every hit of the ray with an analytic shape, 0 < t < tmax, nearest first.
