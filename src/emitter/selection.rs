@@ -82,10 +82,10 @@ impl Estimate {
             },
             Emitter::Area { shape, radiance } => {
                 let g = &geometries[*shape as usize];
-                let b = g.bounds();
+                let (center, radius) = g.bounds().bounding_sphere();
                 Estimate::Area {
-                    center: (b.min + b.max) * 0.5,
-                    radius: (b.max - b.min).length() * 0.5,
+                    center,
+                    radius,
                     area: g.area(),
                     radiance: mean(*radiance),
                 }

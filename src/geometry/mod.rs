@@ -114,6 +114,19 @@ impl Bounds {
     pub fn is_empty(&self) -> bool {
         self.min.cmpgt(self.max).any()
     }
+
+    /// A sphere around the box: its centre and half its diagonal.
+    pub fn bounding_sphere(&self) -> (Vec3A, f32) {
+        (
+            (self.min + self.max) * 0.5,
+            (self.max - self.min).length() * 0.5,
+        )
+    }
+
+    /// Whether the two boxes share a point (touching counts).
+    pub fn overlaps(&self, o: &Bounds) -> bool {
+        self.min.cmple(o.max).all() && self.max.cmpge(o.min).all()
+    }
 }
 
 #[cfg(test)]

@@ -1356,12 +1356,11 @@ fn area_emitters_within_media(
                 .filter(|(s, _)| inside(s))
                 .fold(Bounds::EMPTY, |r, (_, g)| r.union(&g.bounds()));
             area.iter()
-                .filter(|e| {
-                    unbounded || (e.min.cmple(region.max).all() && e.max.cmpge(region.min).all())
-                })
+                .filter(|e| unbounded || e.overlaps(&region))
                 .map(|e| {
-                    let r = (e.max - e.min).length() * 0.5 * (1.0 + 1e-4);
-                    ((e.min + e.max) * 0.5, r * r)
+                    let (centre, r) = e.bounding_sphere();
+                    let r = r * (1.0 + 1e-4);
+                    (centre, r * r)
                 })
                 .collect()
         })
