@@ -1,6 +1,7 @@
 //! One compressed wide BVH (obvhs CWBVH) over every triangle of the scene, with the
 //! analytic shapes tested one by one beside it when there are few of them, else in it
-//! as one primitive each.
+//! as one primitive each. Mitsuba `cube`s, when few, are tested beside it as boxes
+//! ([`Cuboid`]) instead of as 12 triangles in it.
 
 use std::time::Duration;
 
@@ -11,6 +12,7 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray as BvhRay, RayHit};
 use obvhs::BvhBuildParams;
 
+use super::cuboid::{Cuboid, CuboidHit};
 use super::shape::Geometry;
 use super::Bounds;
 
@@ -99,6 +101,19 @@ pub enum Crossings {
 /// [`Accel::crossings`]).
 pub const MAX_CROSSINGS: usize = 16;
 
+/// A cuboid's hit as the BVH would give it: the mesh triangle and its barycentrics.
+#[inline(always)]
+fn cuboid_hit(c: &Cuboid, h: CuboidHit) -> Hit {
+    Hit {
+        t: h.t,
+        shape: c.shape,
+        prim: h.prim,
+        u: h.u,
+        v: h.v,
+        leaf: h.leaf,
+    }
+}
+
 /// obvhs's CWBVH node test clamps a box's entry distance to an absolute 1e-4
 /// (`cwbvh::node::EPSILON`): a box the ray leaves within 1e-4 of its origin is culled.
 /// That loses hits near the origin: every boundary of a scene scaled down, and in a
@@ -136,6 +151,9 @@ pub struct Accel {
     /// Analytic shapes tested beside the BVH (when there are few; see
     /// [`SEPARATE_ANALYTIC`]): their shape indices.
     analytic: Vec<u32>,
+    /// Mitsuba cubes tested beside the BVH as boxes (when, with the analytic shapes,
+    /// there are few); their triangles follow the BVH's in `triangles`.
+    cuboids: Vec<Cuboid>,
     /// Whether the BVH holds analytic shapes too (else triangles only).
     mixed: bool,
     pub bounds: Bounds,
@@ -147,10 +165,25 @@ impl Accel {
             .iter()
             .filter(|g| !matches!(g, Geometry::Mesh(_)))
             .count();
+        // A slab test beats the BVH over a cube's 12 triangles, but every ray pays it
+        // for every cube: many cubes stay in the BVH.
+        let mut cuboids: Vec<Cuboid> = shapes
+            .iter()
+            .enumerate()
+            .filter_map(|(si, g)| match g {
+                Geometry::Mesh(m) => Cuboid::new(si as u32, m, m.cube_to_world.as_ref()?),
+                _ => None,
+            })
+            .collect();
+        if cuboids.len() + n_analytic > SEPARATE_ANALYTIC {
+            cuboids.clear();
+        }
+        let is_cuboid = |si: usize| cuboids.iter().any(|c| c.shape == si as u32);
         let n_triangles: usize = shapes
             .iter()
-            .map(|g| match g {
-                Geometry::Mesh(m) => m.triangles.len(),
+            .enumerate()
+            .map(|(si, g)| match g {
+                Geometry::Mesh(m) if !is_cuboid(si) => m.triangles.len(),
                 _ => 0,
             })
             .sum();
@@ -163,6 +196,7 @@ impl Accel {
         let mut bounds = Bounds::EMPTY;
         for (si, g) in shapes.iter().enumerate() {
             match g {
+                Geometry::Mesh(_) if is_cuboid(si) => bounds = bounds.union(&g.bounds()),
                 Geometry::Mesh(m) => {
                     for ti in 0..m.triangles.len() as u32 {
                         let mut b = Bounds::EMPTY;
@@ -222,17 +256,18 @@ impl Accel {
                 .map(|&i| prims[i as usize])
                 .collect();
         }
-        let triangles = prims
+        let leaf_triangle = |m: &crate::geometry::mesh::TriangleMesh, ti: u32| {
+            let [p0, p1, p2] = m.vertices(ti);
+            LeafTriangle {
+                p0,
+                e1: p1 - p0,
+                e2: p2 - p0,
+            }
+        };
+        let mut triangles: Vec<LeafTriangle> = prims
             .iter()
             .map(|p| match shapes[p.shape as usize] {
-                Geometry::Mesh(m) if p.index != ANALYTIC => {
-                    let [p0, p1, p2] = m.vertices(p.index);
-                    LeafTriangle {
-                        p0,
-                        e1: p1 - p0,
-                        e2: p2 - p0,
-                    }
-                }
+                Geometry::Mesh(m) if p.index != ANALYTIC => leaf_triangle(m, p.index),
                 _ => LeafTriangle {
                     p0: Vec3A::ZERO,
                     e1: Vec3A::ZERO,
@@ -240,11 +275,18 @@ impl Accel {
                 },
             })
             .collect();
+        for c in &mut cuboids {
+            c.first_leaf = triangles.len() as u32;
+            if let Geometry::Mesh(m) = shapes[c.shape as usize] {
+                triangles.extend((0..m.triangles.len() as u32).map(|ti| leaf_triangle(m, ti)));
+            }
+        }
         Accel {
             bvh,
             prims,
             triangles,
             analytic,
+            cuboids,
             mixed,
             bounds,
         }
@@ -335,6 +377,12 @@ impl Accel {
                     v: 0.0,
                     leaf: u32::MAX,
                 });
+            }
+        }
+        for c in &self.cuboids {
+            if let Some(h) = c.intersect(o, d, t_best) {
+                t_best = h.t;
+                best = Some(cuboid_hit(c, h));
             }
         }
         if self.prims.is_empty() {
@@ -448,6 +496,13 @@ impl Accel {
                 }
             }
         }
+        for c in &self.cuboids {
+            for h in c.hits_within(o, d, tmax).into_iter().flatten() {
+                if let Some(answer) = record(cuboid_hit(c, h)) {
+                    return answer;
+                }
+            }
+        }
         if !self.traverses_bvh() {
             for (i, p) in self.prims.iter().enumerate() {
                 let answer = if p.index == ANALYTIC {
@@ -495,6 +550,9 @@ impl Accel {
         {
             return true;
         }
+        if self.cuboids.iter().any(|c| c.hit_within(o, d, tmax)) {
+            return true;
+        }
         if self.prims.is_empty() {
             return false;
         }
@@ -519,14 +577,17 @@ mod tests {
     use glam::{Mat3A, Mat4, Vec3};
     use std::path::Path;
 
-    /// Two cubes, `spheres` spheres and a rectangle.
-    fn scene(spheres: usize) -> Vec<Geometry> {
+    /// Two cubes (Mitsuba `cube`s if `boxes`, else plain meshes), `spheres` spheres and
+    /// a rectangle.
+    fn scene(spheres: usize, boxes: bool) -> Vec<Geometry> {
         let mut g = Vec::new();
         for k in 0..2 {
             let to_world = Mat4::from_translation(Vec3::new(k as f32 * 3.0 - 1.5, 0.0, 0.0))
                 * Mat4::from_rotation_y(0.3 + k as f32);
-            let m = TriangleMesh::new(cube(), &to_world, true, false, Path::new("cube"));
-            g.push(Geometry::Mesh(m.expect("a valid cube")));
+            let mut m = TriangleMesh::new(cube(), &to_world, true, false, Path::new("cube"))
+                .expect("a valid cube");
+            m.cube_to_world = boxes.then_some(to_world);
+            g.push(Geometry::Mesh(m));
         }
         for k in 0..spheres {
             g.push(Geometry::Sphere(Sphere {
@@ -571,15 +632,22 @@ mod tests {
         best
     }
 
-    /// Analytic shapes beside the BVH (3 spheres) and inside it (20 spheres) give the
-    /// hits of testing every primitive.
+    /// Analytic shapes beside the BVH (3 spheres) and inside it (20 spheres), and cubes
+    /// as boxes beside it or as triangles in it, give the hits of testing every
+    /// primitive (to rounding where a box's slab test stands for its triangles).
     #[test]
     fn closest_hit_and_occlusion_match_brute_force() {
-        for spheres in [3, SEPARATE_ANALYTIC + 4] {
-            let g = scene(spheres);
+        for (spheres, boxes) in [(3, false), (3, true), (SEPARATE_ANALYTIC + 4, true)] {
+            let g = scene(spheres, boxes);
             let refs: Vec<&Geometry> = g.iter().collect();
             let accel = Accel::build(&refs);
-            assert_eq!(accel.mixed, spheres > SEPARATE_ANALYTIC);
+            // Too many shapes beside the BVH: the cubes go into it.
+            let as_boxes = boxes && spheres <= SEPARATE_ANALYTIC;
+            assert_eq!(accel.cuboids.len(), if as_boxes { 2 } else { 0 });
+            // Without the cubes' triangles, 3 spheres and a rectangle are few enough to
+            // be tested one by one (in the primitive list: "mixed", with no traversal).
+            assert_eq!(accel.mixed, spheres > SEPARATE_ANALYTIC || as_boxes);
+            assert_eq!(accel.traverses_bvh(), !as_boxes);
             let mut rng = Pcg32::new(5, spheres as u64);
             let mut hits = 0;
             for i in 0..20_000 {
@@ -588,7 +656,17 @@ mod tests {
                 let d = square_to_uniform_sphere(rng.next_2d());
                 let tmax = if i % 2 == 0 { 1.0 } else { f32::INFINITY };
                 let got = accel.intersect(&g, o, d, tmax).map(|h| (h.shape, h.t));
-                assert_eq!(got, brute_force(&g, o, d, tmax), "ray {o} {d} {tmax}");
+                let want = brute_force(&g, o, d, tmax);
+                if as_boxes {
+                    let (gs, gt) = got.unwrap_or((u32::MAX, 0.0));
+                    let (ws, wt) = want.unwrap_or((u32::MAX, 0.0));
+                    assert!(
+                        gs == ws && (gt - wt).abs() <= 1e-4 * wt.max(1.0),
+                        "ray {o} {d} {tmax}: {got:?} vs {want:?}"
+                    );
+                } else {
+                    assert_eq!(got, want, "ray {o} {d} {tmax}");
+                }
                 assert_eq!(accel.occluded(&g, o, d, tmax), got.is_some());
                 hits += got.is_some() as u32;
             }

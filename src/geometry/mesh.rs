@@ -21,6 +21,9 @@ pub struct TriangleMesh {
     /// Cumulative triangle areas, for sampling a point uniformly by area.
     area_cdf: Vec<f32>,
     pub total_area: f32,
+    /// Mitsuba's `cube` only: the `to_world` that places [-1, 1]³, so the accelerator
+    /// can test it as a box (`geometry::cuboid`).
+    pub cube_to_world: Option<Mat4>,
 }
 
 /// Mesh data as read from a file, in object space.
@@ -403,6 +406,7 @@ impl TriangleMesh {
             flip_normals,
             area_cdf,
             total_area: total as f32,
+            cube_to_world: None,
         })
     }
 

@@ -565,6 +565,22 @@ mod tests {
             <bsdf type="null"/>
         </shape>"#;
 
+    /// The scene with the cubes (if `cubes`) as boxes beside the BVH, as loaded (see
+    /// `geometry::cuboid`), or as triangles in it (`boxes` false).
+    fn scene_with(test: &str, cubes: bool, boxes: bool) -> Scene {
+        let mut scene = scene(test, cubes);
+        if !boxes {
+            for g in &mut scene.geometries {
+                if let crate::geometry::shape::Geometry::Mesh(m) = g {
+                    m.cube_to_world = None;
+                }
+            }
+            let refs: Vec<_> = scene.geometries.iter().collect();
+            scene.accel = crate::geometry::accel::Accel::build(&refs);
+        }
+        scene
+    }
+
     /// A scene of [`ANALYTIC`], after [`CUBES`] if `cubes`, written to a file of the
     /// test's own (tests run in parallel).
     fn scene(test: &str, cubes: bool) -> Scene {
@@ -661,14 +677,15 @@ mod tests {
     }
 
     /// One search for all crossings gives the exact transmittance on random shadow
-    /// rays from inside and outside the media, with a BVH (`cubes`) and without (the
-    /// analytic shapes alone). (One cast per crossing is off where a ray grazes a face:
+    /// rays from inside and outside the media, with cubes (as triangles in a BVH, or as
+    /// boxes) and without (the analytic shapes alone). (One cast per crossing is off
+    /// where a ray grazes a face:
     /// its next cast starts at a point moved off the ray along the normal, which shifts
     /// the following crossing by offset / |cos|.)
     #[test]
     fn crossings_in_one_traversal_give_the_exact_transmittance() {
-        for cubes in [true, false] {
-            let scene = scene(&format!("random_rays_{cubes}"), cubes);
+        for (cubes, boxes) in [(true, false), (true, true), (false, false)] {
+            let scene = scene_with(&format!("random_rays_{cubes}_{boxes}"), cubes, boxes);
             let n_media = scene.media.len();
             assert_eq!(n_media, if cubes { 3 } else { 1 });
             // The null sphere's index: after the cubes and the blocking sphere.
@@ -714,7 +731,8 @@ mod tests {
     /// (it does here): the face is still crossed once.
     #[test]
     fn a_crossing_found_twice_on_a_shared_edge_counts_once() {
-        let scene = scene("shared_edge", true);
+        // Cubes as triangles: a box is one primitive, met once.
+        let scene = scene_with("shared_edge", true, false);
         let mut repeats = 0;
         // The first cube spans x in [-1.5, -0.5], y and z in [-0.5, 0.5]; σ_t = 2. Rays
         // along z through its faces z = ±0.5 on either diagonal, and the centre.
