@@ -148,7 +148,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
     // The clearance saves ray casts; where a cast is a few analytic tests (no BVH), the
     // two grid lookups a scattering cost more than the cast, and the shadow roulette's
     // variance is not paid back: the furnace sphere lost 20% of its efficiency with it,
-    // and the medium cube (a box and two rectangles) 15%.
+    // and the medium cube (a box and two rectangles) about 20%.
     let clearance = if b.media.is_empty()
         || integrator.kind != IntegratorKind::Volpath
         || !accel.traverses_bvh()
