@@ -50,6 +50,7 @@ use glam::{Vec3, Vec3A};
 use super::path::mis_weight;
 use super::sampler::Pcg32;
 use super::{sample_light_at_surface, skip_emitters};
+use crate::bsdf::Bsdf;
 use crate::geometry::accel::{Crossings, Hit, MAX_CROSSINGS};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::medium::{transmittance, HomogeneousMedium};
@@ -462,6 +463,20 @@ pub fn sample(
         let Some(h) = si else { break };
         let info = &scene.shapes[h.shape as usize];
         let bsdf = &scene.bsdfs[info.bsdf as usize];
+
+        // ---- A null boundary: the ray goes on unchanged into the next medium ----
+        // What the null BSDF's sample says (wo = ray_d, weight 1, not a scattering
+        // vertex, no emitter sampling), without its frame changes and random numbers.
+        if matches!(bsdf, Bsdf::Null) {
+            null_crossings += 1;
+            if null_crossings > MAX_NULL_CROSSINGS {
+                break;
+            }
+            medium = medium_after(info, h.n, ray_d, medium);
+            ray_o = offset_point(h.p, h.n, ray_d, scene.offset_scale);
+            ray_tmax = f32::INFINITY;
+            continue;
+        }
         let wi = h.sh_frame.to_local(-ray_d);
 
         // ---- Emitter sampling from the surface ----
