@@ -5,7 +5,14 @@
 //! Every cell: no NaN, Inf or negative pixel, no dropped sample, and the image mean not
 //! above the furnace bound 1 (scattering only redirects or removes light). Where the
 //! answer is known exactly the image must match it statistically:
-//! * albedo 1, no depth cap: every pixel is 1;
+//! * albedo 1, no depth cap: every pixel is 1, to rounding. These cells run without
+//!   Russian roulette (rr_depth beyond any path), so that every sample is exactly 1 unless
+//!   the transport loses or makes light: the sky is found by phase sampling alone (no
+//!   emitter sampling of a `constant` emitter), and roulette's 0-or-0.95^{−k} samples
+//!   would be the only noise, a few rare kills per image whose absence the spread of the
+//!   pixel means cannot show (a z-test on it gave z 3.4 at 16 spp and ~1 at 4096 spp on
+//!   one cell). Roulette is tested in the other cells and by the furnace scene against
+//!   Mitsuba (tests/volpath_equivalence.rs);
 //! * albedo 0: each sample is a Bernoulli with mean e^{−σ_t · chord}; the pixel mean is
 //!   that averaged over the pixel, computed here by quadrature; the variance is known.
 //! * Scaled scenes (all lengths × s, sigma_t / s, near/far clip × s) must give the same
@@ -32,6 +39,9 @@ const SPP: u32 = 16;
 const Z_MAX: f64 = 5.0;
 /// max_depth where the expected path is long (see the module comment).
 const DEPTH_CAP: i32 = 64;
+/// How far from 1 an exact furnace pixel may be: f32 rounding of weights that are 1 in
+/// exact arithmetic, far below the 1/SPP a lost or doubled sample makes.
+const FURNACE_ROUNDING: f64 = 1e-5;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Shape {
@@ -54,6 +64,11 @@ impl Cell {
         self.sigma_t >= 100.0 && self.albedo >= 0.99
     }
 
+    /// Every path ends by escaping, at weight 1: every pixel is 1.
+    fn exact_furnace(&self) -> bool {
+        self.albedo == 1.0 && !self.capped()
+    }
+
     /// The scene file: lengths × scale, sigma_t / scale.
     fn xml(&self) -> String {
         let s = self.scale;
@@ -74,7 +89,7 @@ impl Cell {
         let camera_medium = if self.inside { r#"<ref id="m"/>"# } else { "" };
         format!(
             r#"<scene version="3.0.0">
-  <integrator type="volpath"><integer name="max_depth" value="{depth}"/></integrator>
+  <integrator type="volpath"><integer name="max_depth" value="{depth}"/><integer name="rr_depth" value="{rr_depth}"/></integrator>
   <medium type="homogeneous" id="m">
     <float name="sigma_t" value="{sigma_t:e}"/>
     <float name="albedo" value="{albedo}"/>
@@ -94,6 +109,7 @@ impl Cell {
   <emitter type="constant"><rgb name="radiance" value="1, 1, 1"/></emitter>
 </scene>"#,
             depth = if self.capped() { DEPTH_CAP } else { -1 },
+            rr_depth = if self.exact_furnace() { i32::MAX } else { 5 },
             sigma_t = self.sigma_t / s,
             albedo = self.albedo,
             g = self.g,
@@ -268,12 +284,13 @@ fn run_cell(c: &Cell, reference: Option<&[f64]>, failures: &mut Vec<String>) -> 
         ));
     }
     let mut note = format!("mean {m:.4}");
-    if c.albedo == 1.0 && !c.capped() {
-        let z = z_of(m, se, 1.0);
-        note += &format!(", furnace z {z:+.1}");
-        if z.abs() > Z_MAX {
+    if c.exact_furnace() {
+        // No noise: a lost path takes 1/spp from its pixel, a doubled one adds as much.
+        let worst = v.iter().map(|p| (p - 1.0).abs()).fold(0.0, f64::max);
+        note += &format!(", furnace |pixel - 1| <= {worst:.1e}");
+        if worst > FURNACE_ROUNDING {
             fail(format!(
-                "furnace: mean {m:.5} ± {se:.1e}, exact 1 (z {z:.1})"
+                "furnace: a pixel is {worst:.2e} from the exact 1 (rounding allows {FURNACE_ROUNDING:e})"
             ));
         }
     }

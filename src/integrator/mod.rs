@@ -63,7 +63,7 @@ pub(crate) fn sample_light_at_surface(
     if scene.emitters.is_empty() {
         return None;
     }
-    let (idx, u, p_select) = scene.emitter_selection.select(h.p, u);
+    let (idx, u, p_select) = scene.emitter_selection.select(h.p, u)?;
     let es = scene.emitters[idx].sample_direction(h.p, u, &scene.geometries, &scene.bsphere)?;
     let (f, bsdf_pdf) = bsdf.eval_pdf(wi, h.sh_frame.to_local(es.d), h.uv);
     if f == Vec3::ZERO {

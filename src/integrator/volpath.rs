@@ -180,7 +180,9 @@ fn medium_emitter_sample(
     if !m.sample_emitters || scene.emitters.is_empty() {
         return Vec3::ZERO;
     }
-    let (idx, u, p_select) = scene.emitter_selection.select(p, rng.next_2d());
+    let Some((idx, u, p_select)) = scene.emitter_selection.select(p, rng.next_2d()) else {
+        return Vec3::ZERO;
+    };
     let e = &scene.emitters[idx];
     let Some(es) = e.sample_direction(p, u, &scene.geometries, &scene.bsphere) else {
         return Vec3::ZERO;

@@ -198,7 +198,12 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         .iter()
         .map(|info| b.bsdfs[info.bsdf as usize].shadow_pass())
         .collect();
-    let emitter_selection = EmitterSelection::new(&b.emitters, &b.geometries);
+    // volpath leaves a uniform sky to BSDF and phase sampling (see EmitterSelection::new).
+    let emitter_selection = EmitterSelection::new(
+        &b.emitters,
+        &b.geometries,
+        integrator.kind == IntegratorKind::Volpath,
+    );
     let area_emitter_bounds =
         area_emitters_within_media(&b.emitters, &b.geometries, &b.shapes, b.media.len());
     Ok(Scene {
