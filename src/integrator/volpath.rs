@@ -177,7 +177,11 @@ fn medium_emitter_sample(
     free: f32,
     rng: &mut Pcg32,
 ) -> Vec3 {
-    if !m.sample_emitters || scene.emitters.is_empty() {
+    // (Where no emitter sample can arrive, none is drawn: see Scene::emitters_unreachable.)
+    if !m.sample_emitters
+        || scene.emitters.is_empty()
+        || medium.is_some_and(|mi| scene.emitters_unreachable[mi as usize])
+    {
         return Vec3::ZERO;
     }
     let Some((idx, u, p_select)) = scene.emitter_selection.select(p, rng.next_2d()) else {
@@ -824,6 +828,87 @@ mod tests {
                     "direction {d}, sample {k}: {l} vs {want}"
                 );
             }
+        }
+    }
+
+    /// A medium sealed in closed shapes that block shadow rays, with no emitter inside,
+    /// skips emitter sampling (`Scene::emitters_unreachable`), and every emitter sample
+    /// it skips would have been 0. Open, passing or partly passing boundaries, an
+    /// emitter inside, or the medium outside some shape keep the sampling.
+    #[test]
+    fn a_sealed_medium_skips_only_emitter_samples_that_cannot_arrive() {
+        let scene_of = |name: &str, boundary: &str, bsdf: &str, extra: &str| {
+            let xml = format!(
+                r#"<scene version="3.0.0">
+            <medium type="homogeneous" id="juice">
+                <float name="sigma_t" value="2"/><float name="albedo" value="0.9"/></medium>
+            <sensor type="perspective"><film type="hdrfilm">
+                <integer name="width" value="4"/><integer name="height" value="4"/></film>
+            </sensor>
+            <shape type="{boundary}"><bsdf type="{bsdf}"/><ref name="interior" id="juice"/></shape>
+            <shape type="sphere"><point name="center" x="2" y="2" z="0"/>
+                <float name="radius" value="0.3"/>
+                <emitter type="area"><rgb name="radiance" value="5, 5, 5"/></emitter></shape>
+            <emitter type="point"><point name="position" x="-2" y="1" z="1"/></emitter>
+            <emitter type="directional"><vector name="direction" x="0" y="-1" z="0"/></emitter>
+            <emitter type="constant"/>
+            {extra}
+        </scene>"#
+            );
+            let dir = std::env::temp_dir().join(format!("mediareg_volpath_{}", std::process::id()));
+            std::fs::create_dir_all(&dir).unwrap();
+            let path = dir.join(format!("sealed_{name}.xml"));
+            std::fs::write(&path, xml).unwrap();
+            crate::load_scene(&path, &Default::default(), &BuildOverrides::default())
+                .unwrap_or_else(|e| panic!("{name}: {e}"))
+        };
+        let sealed = [
+            ("glass_ball", "sphere", "dielectric", ""),
+            ("glass_cube", "cube", "dielectric", ""),
+            ("diffuse_ball", "sphere", "diffuse", ""),
+        ];
+        for (name, boundary, bsdf, extra) in sealed {
+            let mut scene = scene_of(name, boundary, bsdf, extra);
+            assert!(scene.emitters_unreachable[0], "{name}: not found sealed");
+            // What the skipped samples would have been: 0 at every point inside.
+            scene.emitters_unreachable[0] = false;
+            let m = &scene.media[0];
+            let mut rng = Pcg32::new(5, 1);
+            for _ in 0..2000 {
+                let p = square_to_uniform_sphere(rng.next_2d()) * (0.95 * rng.next_1d().cbrt());
+                let d_in = square_to_uniform_sphere(rng.next_2d());
+                let x = medium_emitter_sample(&scene, m, Some(0), p, d_in, 0.0, &mut rng);
+                assert_eq!(x, Vec3::ZERO, "{name}: an emitter sample from {p} arrived");
+            }
+        }
+        let open = [
+            ("null_ball", "sphere", "null", ""),
+            ("thin_glass_ball", "sphere", "thindielectric", ""),
+            ("rectangle", "rectangle", "dielectric", ""),
+            (
+                "point_light_inside",
+                "sphere",
+                "dielectric",
+                r#"<emitter type="point"><point name="position" x="0.1" y="0" z="0"/></emitter>"#,
+            ),
+            (
+                "area_light_inside",
+                "sphere",
+                "dielectric",
+                r#"<shape type="sphere"><float name="radius" value="0.1"/>
+                    <emitter type="area"/></shape>"#,
+            ),
+            (
+                "juice_around_a_bead",
+                "sphere",
+                "dielectric",
+                r#"<shape type="sphere"><float name="radius" value="0.1"/><bsdf type="null"/>
+                    <ref name="exterior" id="juice"/></shape>"#,
+            ),
+        ];
+        for (name, boundary, bsdf, extra) in open {
+            let scene = scene_of(name, boundary, bsdf, extra);
+            assert!(!scene.emitters_unreachable[0], "{name}: found sealed");
         }
     }
 }

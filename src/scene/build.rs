@@ -22,7 +22,7 @@ use crate::emitter::envmap::EnvMap;
 use crate::emitter::selection::EmitterSelection;
 use crate::emitter::{BSphere, Emitter, Spot};
 use crate::error::{err_at, Result, SceneError};
-use crate::geometry::accel::Accel;
+use crate::geometry::accel::{Accel, ShadowPass};
 use crate::geometry::clearance::Clearance;
 use crate::geometry::mesh::{cube, read_obj, read_ply, TriangleMesh};
 use crate::geometry::serialized::read_serialized;
@@ -193,7 +193,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
             1.0
         }
     };
-    let shadow_pass = b
+    let shadow_pass: Vec<ShadowPass> = b
         .shapes
         .iter()
         .map(|info| b.bsdfs[info.bsdf as usize].shadow_pass())
@@ -206,7 +206,15 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
     );
     let area_emitter_bounds =
         area_emitters_within_media(&b.emitters, &b.geometries, &b.shapes, b.media.len());
+    let emitters_unreachable = media_sealed_from_emitters(
+        &b.emitters,
+        &b.geometries,
+        &b.shapes,
+        &shadow_pass,
+        b.media.len(),
+    );
     Ok(Scene {
+        emitters_unreachable,
         shadow_pass,
         emitter_selection,
         area_emitter_bounds,
@@ -1338,6 +1346,55 @@ fn ior(p: &Props, name: &str, default: &str) -> Result<f64> {
 /// reach without leaving it: every one where the medium is unbounded (outside some
 /// shape, or bounded by none, as a camera's medium may be), else those whose box meets
 /// the box of the shapes it fills.
+/// Per medium: whether no emitter sample from a point inside it can arrive, so that
+/// its vertices need not sample emitters. That holds for a medium that fills the
+/// interior of closed shapes (spheres, Mitsuba cubes) whose surfaces all block shadow
+/// rays (a glass ball of juice: Mitsuba's shadow rays stop at any non-null surface), is
+/// the exterior of none, and holds no emitter (no area emitter's box meets its box, no
+/// point or spot light lies in it; the other emitters lie at infinity). Every such
+/// sample is 0, and no emitter can be hit from such a vertex without first meeting its
+/// boundary, whose BSDF then sets the MIS weights: skipping them changes no estimate.
+fn media_sealed_from_emitters(
+    emitters: &[Emitter],
+    geometries: &[Geometry],
+    shapes: &[ShapeInfo],
+    shadow_pass: &[ShadowPass],
+    n_media: usize,
+) -> Vec<bool> {
+    let closed = |g: &Geometry| match g {
+        Geometry::Sphere(_) => true,
+        Geometry::Mesh(m) => m.cube_to_world.is_some(),
+        Geometry::Planar(_) => false,
+    };
+    (0..n_media as u32)
+        .map(|mi| {
+            if shapes.iter().any(|s| s.exterior == Some(mi)) {
+                return false;
+            }
+            let mut region = Bounds::EMPTY;
+            let mut any = false;
+            for ((s, g), pass) in shapes.iter().zip(geometries).zip(shadow_pass) {
+                if s.interior == Some(mi) {
+                    if !closed(g) || *pass != ShadowPass::Blocks {
+                        return false;
+                    }
+                    region = region.union(&g.bounds());
+                    any = true;
+                }
+            }
+            let inside = |p: Vec3A| region.overlaps(&Bounds { min: p, max: p });
+            any && emitters.iter().all(|e| match e {
+                Emitter::Area { shape, .. } => {
+                    !geometries[*shape as usize].bounds().overlaps(&region)
+                }
+                Emitter::Point { position, .. } => !inside(*position),
+                Emitter::Spot(spot) => !inside(spot.position),
+                Emitter::Directional { .. } | Emitter::Constant { .. } | Emitter::EnvMap(_) => true,
+            })
+        })
+        .collect()
+}
+
 fn area_emitters_within_media(
     emitters: &[Emitter],
     geometries: &[Geometry],

@@ -68,6 +68,9 @@ pub struct Scene {
     /// Per medium, a bounding sphere (centre, radius²) of each area emitter a ray in
     /// that medium may reach before it leaves it.
     pub area_emitter_bounds: Vec<Vec<(Vec3A, f32)>>,
+    /// Per medium: no emitter sample from inside it can arrive (it is sealed in closed
+    /// shapes that block shadow rays, with no emitter inside), so its vertices skip them.
+    pub emitters_unreachable: Vec<bool>,
     /// The environment emitter (a `constant`), seen by rays that miss.
     pub environment: Option<u32>,
     pub media: Vec<HomogeneousMedium>,
