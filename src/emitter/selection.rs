@@ -21,16 +21,18 @@
 //! light and a sky) fell from 2.04e-4 at 0.5 to 1.17e-4 at 0.75 and 0.80e-4 at 0.95, and
 //! Lucy's (an area light and a sky) from 2.02e-4 to 1.18e-4 at 0.9 and 1.12e-4 at 0.95.
 //!
-//! Under `volpath` a `constant` sky is not among the choices at all (n counts the
-//! others): it is found by BSDF and phase sampling alone, which draw directions in
-//! proportion to f · cos or to the phase function, while its emitter samples are uniform
-//! over the sphere. At equal spp (64², 3 seeds) the MSE fell on the furnace from 3.87e-4
-//! to 4.35e-5, on max_depth_directional (a directional light and a sky) from 2.40e-4 to
-//! 5.37e-5, on the bench Bunny from 2.30e-4 to 1.49e-4 and on Lucy from 2.43e-4 to
-//! 2.27e-4, with 0–25% less time; on the medium cube lit by a sky alone (σ_t 10, where
-//! emitter sampling's exact transmittance should help most) by 12% at albedo 0.5 and 9%
-//! at 0.95, with 39% less time. `path` and `direct` still sample the sky (`direct`'s
-//! emitter samples may be all it takes).
+//! Under `volpath` and `path` a `constant` sky is not among the choices at all (n
+//! counts the others): it is found by BSDF and phase sampling alone, which draw
+//! directions in proportion to f · cos or to the phase function, while its emitter
+//! samples are uniform over the sphere. At equal spp (64², 3 seeds) the MSE fell on the
+//! furnace from 3.87e-4 to 4.35e-5, on max_depth_directional (a directional light and a
+//! sky) from 2.40e-4 to 5.37e-5, on the bench Bunny from 2.30e-4 to 1.49e-4 and on Lucy
+//! from 2.43e-4 to 2.27e-4, with 0–25% less time; on the medium cube lit by a sky alone
+//! (σ_t 10, where emitter sampling's exact transmittance should help most) by 12% at
+//! albedo 0.5 and 9% at 0.95, with 39% less time. Under `path` (64 spp): conductor −12%,
+//! plastic −20%, roughplastic −29%, spot −60%, dielectric_sphere −2%, anisotropic −44%,
+//! with 3–27% less time. `direct` still samples the sky: its emitter samples may be all
+//! it takes.
 //!
 //! Any positive `p` keeps the estimate unbiased: the emitter-sampled value is divided
 //! by it, and the MIS weight of an emitter hit uses the same `p`, evaluated at the
@@ -150,7 +152,7 @@ impl EmitterSelection {
     /// proportion to f · cos or to the phase function (times a constant L), while emitter
     /// sampling draws them uniformly over the sphere: its samples add variance where the
     /// BSDF or phase function is not flat, and in a medium they break the balance between
-    /// a path that escapes and one that scatters on (see `integrator::volpath`).
+    /// a path that escapes and one that scatters on.
     pub fn new(emitters: &[Emitter], geometries: &[Geometry], constant_by_bsdf_only: bool) -> Self {
         let skipped = |e: &Emitter| constant_by_bsdf_only && matches!(e, Emitter::Constant { .. });
         let mut candidates = Vec::new();

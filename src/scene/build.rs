@@ -198,11 +198,15 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         .iter()
         .map(|info| b.bsdfs[info.bsdf as usize].shadow_pass())
         .collect();
-    // volpath leaves a uniform sky to BSDF and phase sampling (see EmitterSelection::new).
+    // volpath and path leave a uniform sky to BSDF and phase sampling; direct keeps it (its
+    // emitter samples may be all it takes). See EmitterSelection::new.
     let emitter_selection = EmitterSelection::new(
         &b.emitters,
         &b.geometries,
-        integrator.kind == IntegratorKind::Volpath,
+        matches!(
+            integrator.kind,
+            IntegratorKind::Volpath | IntegratorKind::Path
+        ),
     );
     let area_emitter_bounds =
         area_emitters_within_media(&b.emitters, &b.geometries, &b.shapes, b.media.len());
