@@ -612,12 +612,18 @@ mod tests {
             </sensor>{}{ANALYTIC}</scene>"#,
             if cubes { CUBES } else { "" }
         );
+        load_xml(test, &xml)
+    }
+
+    /// Loads a scene file's text, written to a file named after `name` (each test its
+    /// own name: tests run in parallel).
+    fn load_xml(name: &str, xml: &str) -> Scene {
         let dir = std::env::temp_dir().join(format!("mediareg_volpath_{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join(format!("{test}.xml"));
+        let path = dir.join(format!("{name}.xml"));
         std::fs::write(&path, xml).unwrap();
         crate::load_scene(&path, &Default::default(), &BuildOverrides::default())
-            .unwrap_or_else(|e| panic!("{e}"))
+            .unwrap_or_else(|e| panic!("{name}: {e}"))
     }
 
     /// Where the ray o + t d is inside the box (local [-1, 1]³ mapped by `to_local`
@@ -804,12 +810,7 @@ mod tests {
                 <float name="radius" value="0.5"/>
                 <emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter></shape>
         </scene>"#;
-        let dir = std::env::temp_dir().join(format!("mediareg_volpath_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("emitter_in_fog.xml");
-        std::fs::write(&path, xml).unwrap();
-        let scene = crate::load_scene(&path, &Default::default(), &BuildOverrides::default())
-            .unwrap_or_else(|e| panic!("{e}"));
+        let scene = load_xml("emitter_in_fog", xml);
         assert!(scene.camera_medium.is_some());
         let le = Vec3::new(2.0, 3.0, 4.0);
         let o = Vec3A::ZERO;
@@ -855,12 +856,7 @@ mod tests {
             {extra}
         </scene>"#
             );
-            let dir = std::env::temp_dir().join(format!("mediareg_volpath_{}", std::process::id()));
-            std::fs::create_dir_all(&dir).unwrap();
-            let path = dir.join(format!("sealed_{name}.xml"));
-            std::fs::write(&path, xml).unwrap();
-            crate::load_scene(&path, &Default::default(), &BuildOverrides::default())
-                .unwrap_or_else(|e| panic!("{name}: {e}"))
+            load_xml(&format!("sealed_{name}"), &xml)
         };
         let sealed = [
             ("glass_ball", "sphere", "dielectric", ""),
