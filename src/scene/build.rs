@@ -1346,10 +1346,21 @@ fn ior(p: &Props, name: &str, default: &str) -> Result<f64> {
     Ok(v)
 }
 
-/// Per medium, a bounding sphere (centre, radius²) of each area emitter a ray in it may
-/// reach without leaving it: every one where the medium is unbounded (outside some
-/// shape, or bounded by none, as a camera's medium may be), else those whose box meets
-/// the box of the shapes it fills.
+/// The box of the shapes medium `mi` fills, or `None` where it is unbounded (outside
+/// some shape, or inside none, as a camera's medium may be).
+fn medium_region(mi: u32, geometries: &[Geometry], shapes: &[ShapeInfo]) -> Option<Bounds> {
+    if shapes.iter().any(|s| s.exterior == Some(mi)) {
+        return None;
+    }
+    let mut filled = shapes
+        .iter()
+        .zip(geometries)
+        .filter(|(s, _)| s.interior == Some(mi))
+        .peekable();
+    filled.peek()?;
+    Some(filled.fold(Bounds::EMPTY, |r, (_, g)| r.union(&g.bounds())))
+}
+
 /// Per medium: whether no emitter sample from a point inside it can arrive, so that
 /// its vertices need not sample emitters. That holds for a medium that fills the
 /// interior of closed shapes (spheres, Mitsuba cubes) whose surfaces all block shadow
@@ -1372,33 +1383,35 @@ fn media_sealed_from_emitters(
     };
     (0..n_media as u32)
         .map(|mi| {
-            if shapes.iter().any(|s| s.exterior == Some(mi)) {
+            let Some(region) = medium_region(mi, geometries, shapes) else {
                 return false;
-            }
-            let mut region = Bounds::EMPTY;
-            let mut any = false;
-            for ((s, g), pass) in shapes.iter().zip(geometries).zip(shadow_pass) {
-                if s.interior == Some(mi) {
-                    if !closed(g) || *pass != ShadowPass::Blocks {
-                        return false;
-                    }
-                    region = region.union(&g.bounds());
-                    any = true;
-                }
-            }
+            };
+            let sealed = shapes
+                .iter()
+                .zip(geometries)
+                .zip(shadow_pass)
+                .filter(|((s, _), _)| s.interior == Some(mi))
+                .all(|((_, g), pass)| closed(g) && *pass == ShadowPass::Blocks);
             let inside = |p: Vec3A| region.overlaps(&Bounds { min: p, max: p });
-            any && emitters.iter().all(|e| match e {
-                Emitter::Area { shape, .. } => {
-                    !geometries[*shape as usize].bounds().overlaps(&region)
-                }
-                Emitter::Point { position, .. } => !inside(*position),
-                Emitter::Spot(spot) => !inside(spot.position),
-                Emitter::Directional { .. } | Emitter::Constant { .. } | Emitter::EnvMap(_) => true,
-            })
+            sealed
+                && emitters.iter().all(|e| match e {
+                    Emitter::Area { shape, .. } => {
+                        !geometries[*shape as usize].bounds().overlaps(&region)
+                    }
+                    Emitter::Point { position, .. } => !inside(*position),
+                    Emitter::Spot(spot) => !inside(spot.position),
+                    Emitter::Directional { .. } | Emitter::Constant { .. } | Emitter::EnvMap(_) => {
+                        true
+                    }
+                })
         })
         .collect()
 }
 
+/// Per medium, a bounding sphere (centre, radius²) of each area emitter a ray in it may
+/// reach without leaving it: every one where the medium is unbounded (outside some
+/// shape, or bounded by none, as a camera's medium may be), else those whose box meets
+/// the box of the shapes it fills.
 fn area_emitters_within_media(
     emitters: &[Emitter],
     geometries: &[Geometry],
@@ -1414,16 +1427,9 @@ fn area_emitters_within_media(
         .collect();
     (0..n_media as u32)
         .map(|mi| {
-            let inside = |s: &&ShapeInfo| s.interior == Some(mi);
-            let unbounded =
-                shapes.iter().any(|s| s.exterior == Some(mi)) || !shapes.iter().any(|s| inside(&s));
-            let region = shapes
-                .iter()
-                .zip(geometries)
-                .filter(|(s, _)| inside(s))
-                .fold(Bounds::EMPTY, |r, (_, g)| r.union(&g.bounds()));
+            let region = medium_region(mi, geometries, shapes);
             area.iter()
-                .filter(|e| unbounded || e.overlaps(&region))
+                .filter(|e| region.is_none_or(|r| e.overlaps(&r)))
                 .map(|e| {
                     let (centre, r) = e.bounding_sphere();
                     let r = r * (1.0 + 1e-4);
