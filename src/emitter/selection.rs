@@ -385,6 +385,7 @@ mod tests {
         assert!((v.x - 0.5).abs() < 1e-5);
         assert_eq!(sel.pdf(Vec3A::ONE, 7), 1.0 / 9.0);
     }
+
     /// Left to BSDF and phase sampling, a `constant` sky is never picked and its pdf is
     /// 0 (its hits then weigh 1 under MIS); the others share the whole choice, weighed
     /// (up to WEIGHED_MAX candidates) or uniform. A sky alone leaves nothing to pick.

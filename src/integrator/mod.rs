@@ -60,9 +60,7 @@ pub(crate) fn sample_light_at_surface(
     u: Vec2,
     visibility: impl FnOnce(Vec3A, Vec3A, f32) -> Vec3,
 ) -> Option<SurfaceLightSample> {
-    if scene.emitters.is_empty() {
-        return None;
-    }
+    // None where there is no emitter to pick.
     let (idx, u, p_select) = scene.emitter_selection.select(h.p, u)?;
     let es = scene.emitters[idx].sample_direction(h.p, u, &scene.geometries, &scene.bsphere)?;
     let (f, bsdf_pdf) = bsdf.eval_pdf(wi, h.sh_frame.to_local(es.d), h.uv);

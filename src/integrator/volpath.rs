@@ -178,12 +178,11 @@ fn medium_emitter_sample(
     rng: &mut Pcg32,
 ) -> Vec3 {
     // (Where no emitter sample can arrive, none is drawn: see Scene::emitters_unreachable.)
-    if !m.sample_emitters
-        || scene.emitters.is_empty()
-        || medium.is_some_and(|mi| scene.emitters_unreachable[mi as usize])
-    {
+    if !m.sample_emitters || medium.is_some_and(|mi| scene.emitters_unreachable[mi as usize]) {
         return Vec3::ZERO;
     }
+    // None where there is no emitter to pick (none at all, or only a sky left to
+    // phase sampling).
     let Some((idx, u, p_select)) = scene.emitter_selection.select(p, rng.next_2d()) else {
         return Vec3::ZERO;
     };
