@@ -292,6 +292,11 @@ impl Accel {
         }
     }
 
+    /// The cube `shape` as the accelerator tests it, if it is tested as a box.
+    pub fn cuboid(&self, shape: u32) -> Option<&Cuboid> {
+        self.cuboids.iter().find(|c| c.shape == shape)
+    }
+
     /// Whether a ray cast traverses the BVH (else it tests a few primitives one by one).
     pub fn traverses_bvh(&self) -> bool {
         self.prims.len() > BRUTE_FORCE_PRIMS

@@ -59,6 +59,9 @@ pub struct Cuboid {
     /// at `first_leaf + i`): what a hit's `leaf` names.
     pub first_leaf: u32,
     to_local: Affine3A,
+    /// Per axis k: 1 / |∇x'_k|, the world distance per unit of the box's coordinate k
+    /// across its faces (see [`Cuboid::distance_inside`]).
+    face_spacing: Vec3A,
     /// Per face `2k + (side > 0)` on axis `k`: its two triangles.
     faces: [[FaceTriangle; 2]; 6],
 }
@@ -113,10 +116,13 @@ impl Cuboid {
         if faces.iter().any(Option::is_none) {
             return None;
         }
+        let m = to_local.matrix3;
+        let grad_len = (m.x_axis * m.x_axis + m.y_axis * m.y_axis + m.z_axis * m.z_axis).sqrt();
         Some(Cuboid {
             shape,
             first_leaf: 0,
             to_local,
+            face_spacing: grad_len.recip(),
             faces: faces.map(Option::unwrap),
         })
     }
@@ -193,6 +199,17 @@ impl Cuboid {
         } else {
             (t_far > 0.0 && t_far < tmax).then(|| self.hit_on(ol, dl, t_far, far_face))
         }
+    }
+
+    /// The distance from `p` inside the box to its surface (0 outside): the nearest of
+    /// the face planes. Plane `x'_k = ±1` lies `(1 − |x'_k|) / |∇x'_k|` away, where
+    /// `∇x'_k` is row k of the map to the box's space (affine maps keep planes).
+    #[inline]
+    pub fn distance_inside(&self, p: Vec3A) -> f32 {
+        let l = self.to_local.transform_point3a(p);
+        ((Vec3A::ONE - l.abs()) * self.face_spacing)
+            .min_element()
+            .max(0.0)
     }
 
     /// Both hits with 0 < t < tmax (entry, exit), nearest first.

@@ -2,6 +2,7 @@
 
 pub mod accel;
 pub mod clearance;
+pub mod convex;
 pub mod cuboid;
 pub mod mesh;
 pub mod serialized;

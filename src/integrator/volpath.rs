@@ -36,7 +36,9 @@
 //!   bounding sphere within the medium are cast in full for this.
 //!
 //! Free flights shorter than the clearance of their origin are not cast: no surface can
-//! be that close, so the cast's answer is known.
+//! be that close, so the cast's answer is known. In a medium that fills one convex
+//! shape with nothing else inside (`geometry::convex`), the clearance is the distance
+//! to that shape, and a flight that is cast tests that shape alone.
 //!
 //! Albedo gradient (the paper, Sec. 4.1, Eq. 6–8). Sampling depends on σ_t only, so a
 //! path's pdf does not depend on the albedo α of the chosen medium, and its weight
@@ -350,12 +352,20 @@ pub fn sample(
             let m: &HomogeneousMedium = &scene.media[mi as usize];
             let t = m.sample_distance(hero, rng.next_1d());
             // Within the clearance no surface can be hit: the cast's answer is known.
+            // In a convex medium the distance to its one shape is a clearance too, and
+            // an exact one. Shadow rays are still played against the grid's alone
+            // (below): against the convex one, the medium cube's shadow roulette cost
+            // more in variance (+6% MSE) than it saved in time (−2%).
             let clearance = scene.clearance.at(ray_o);
+            let convex = scene.convex_media[mi as usize].as_ref();
+            let skip_within = convex.map_or(clearance, |b| {
+                b.clearance(&scene.geometries, ray_o).max(clearance)
+            });
             // Where the ray may end on an area emitter, it is cast in full (not only up
             // to t, nor skipped within the clearance), so the emission there can be
             // counted in expectation.
             si = if scene.may_see_area_emitter(mi, ray_o, ray_d) {
-                let full = scene.intersect(ray_o, ray_d, ray_tmax);
+                let full = scene.intersect_in_medium(mi, ray_o, ray_d, ray_tmax);
                 // ---- Emission at the segment's end, in expectation ----
                 // The flight passes to the hit with probability T_hero(h.t) and then weighs the
                 // emission by β T / mean(r T) (see the module comment): count that
@@ -373,10 +383,10 @@ pub fn sample(
                     }
                 }
                 full.filter(|h| h.t < t)
-            } else if t < clearance {
+            } else if t < skip_within {
                 None
             } else {
-                scene.intersect(ray_o, ray_d, t.min(ray_tmax))
+                scene.intersect_in_medium(mi, ray_o, ray_d, t.min(ray_tmax))
             };
             match si {
                 Some(h) => {
@@ -829,6 +839,142 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A medium that fills one convex shape with nothing else inside casts against that
+    /// shape alone (`Scene::intersect_in_medium`, `geometry::convex`): from points inside,
+    /// its hits are the scene's, and its clearance is the distance to the nearest face
+    /// plane (found here from the mesh's own triangles) or to the sphere. Media filling
+    /// two shapes, with another shape within reach, outside a shape, around the camera
+    /// or in an open shape get no such shape.
+    #[test]
+    fn a_convex_medium_casts_against_its_shape_alone() {
+        use crate::geometry::convex::ConvexBoundary;
+        use crate::geometry::shape::Geometry;
+        let scene_of = |name: &str, extra: &str, camera_medium: &str| {
+            let xml = format!(
+                r#"<scene version="3.0.0">
+            <medium type="homogeneous" id="fog">
+                <float name="sigma_t" value="2"/><float name="albedo" value="0.9"/></medium>
+            <medium type="homogeneous" id="ball">
+                <float name="sigma_t" value="3"/><float name="albedo" value="0.9"/></medium>
+            <sensor type="perspective">{camera_medium}<film type="hdrfilm">
+                <integer name="width" value="4"/><integer name="height" value="4"/></film>
+            </sensor>
+            <shape type="cube"><transform name="to_world">
+                    <scale x="0.6" y="0.3" z="0.8"/><rotate x="1" y="1" angle="35"/>
+                    <scale x="1.3" y="1" z="0.7"/><translate x="0.2" z="-0.1"/></transform>
+                <bsdf type="null"/><ref name="interior" id="fog"/></shape>
+            <shape type="sphere"><point name="center" x="3" y="0" z="0"/>
+                <float name="radius" value="0.7"/>
+                <bsdf type="dielectric"/><ref name="interior" id="ball"/></shape>
+            <shape type="rectangle"><transform name="to_world"><scale value="5"/>
+                <rotate x="1" angle="-90"/><translate y="-1.5"/></transform></shape>
+            <shape type="sphere"><point name="center" x="0" y="2.5" z="0"/>
+                <float name="radius" value="0.3"/>
+                <emitter type="area"><rgb name="radiance" value="5, 5, 5"/></emitter></shape>
+            {extra}
+        </scene>"#
+            );
+            load_xml(&format!("convex_{name}"), &xml)
+        };
+        let scene = scene_of("box_and_ball", "", "");
+        let mut rng = Pcg32::new(9, 3);
+        for (mi, name) in [(0u32, "box"), (1, "ball")] {
+            let b = scene.convex_media[mi as usize]
+                .as_ref()
+                .unwrap_or_else(|| panic!("{name}: no convex shape found"));
+            let shape = b.shape();
+            // A point inside and its exact distance to the surface.
+            let inside = |rng: &mut Pcg32| match (b, &scene.geometries[shape as usize]) {
+                (ConvexBoundary::Box { .. }, Geometry::Mesh(m)) => {
+                    let to_world = m.cube_to_world.unwrap();
+                    let l = (rng.next_2d().extend(rng.next_1d()) * 2.0 - glam::Vec3::ONE) * 0.98;
+                    let p = Vec3A::from(to_world.transform_point3(l));
+                    let planes = (0..m.triangles.len() as u32).map(|ti| {
+                        let [a, b, c] = m.vertices(ti);
+                        ((b - a).cross(c - a).normalize().dot(p - a)).abs()
+                    });
+                    (p, planes.fold(f32::INFINITY, f32::min))
+                }
+                (ConvexBoundary::Sphere(_), Geometry::Sphere(s)) => {
+                    let p = s.center
+                        + square_to_uniform_sphere(rng.next_2d())
+                            * (0.98 * s.radius * rng.next_1d().cbrt());
+                    (p, s.radius - (p - s.center).length())
+                }
+                _ => panic!("{name}: the convex shape is not the one filled"),
+            };
+            for _ in 0..2000 {
+                let (p, distance) = inside(&mut rng);
+                let clearance = b.clearance(&scene.geometries, p);
+                assert!(
+                    clearance <= distance && clearance >= 0.999 * distance - 1e-6,
+                    "{name}: clearance {clearance} at {p}, distance {distance}"
+                );
+                let d = square_to_uniform_sphere(rng.next_2d());
+                let full = scene.intersect(p, d, f32::INFINITY).unwrap();
+                let own = scene
+                    .intersect_in_medium(mi, p, d, f32::INFINITY)
+                    .unwrap_or_else(|| panic!("{name}: no exit from {p} along {d}"));
+                assert_eq!(
+                    (own.shape, full.shape),
+                    (shape, shape),
+                    "{name}: {p} along {d}"
+                );
+                assert!(
+                    (own.t - full.t).abs() <= 1e-5 * full.t.max(1.0) && own.t >= clearance,
+                    "{name}: exit at {} against the scene's {}, clearance {clearance}",
+                    own.t,
+                    full.t
+                );
+                assert!((own.p - full.p).length() <= 1e-5 && own.n.dot(full.n) > 0.9999);
+            }
+        }
+        let none = [
+            (
+                "two_shapes",
+                r#"<shape type="sphere"><point name="center" x="0" y="0" z="3"/>
+                    <float name="radius" value="0.2"/><bsdf type="null"/>
+                    <ref name="interior" id="fog"/></shape>"#,
+                "",
+            ),
+            (
+                "bead_inside",
+                r#"<shape type="sphere"><point name="center" x="0.2" y="0" z="-0.1"/>
+                    <float name="radius" value="0.1"/></shape>"#,
+                "",
+            ),
+            (
+                "fog_outside_a_shape",
+                r#"<shape type="sphere"><point name="center" x="0" y="0" z="3"/>
+                    <float name="radius" value="0.2"/><bsdf type="null"/>
+                    <ref name="exterior" id="fog"/></shape>"#,
+                "",
+            ),
+            ("camera_in_fog", "", r#"<ref id="fog"/>"#),
+        ];
+        for (name, extra, camera) in none {
+            let scene = scene_of(name, extra, camera);
+            assert!(scene.convex_media[0].is_none(), "{name}: found convex");
+            assert!(
+                scene.convex_media[1].is_some(),
+                "{name}: the ball is still convex"
+            );
+        }
+        let open = load_xml(
+            "convex_rectangle",
+            r#"<scene version="3.0.0"><medium type="homogeneous" id="fog"/>
+            <sensor type="perspective"><film type="hdrfilm">
+                <integer name="width" value="4"/><integer name="height" value="4"/></film>
+            </sensor>
+            <shape type="rectangle"><bsdf type="null"/><ref name="interior" id="fog"/></shape>
+            </scene>"#,
+        );
+        assert!(
+            open.convex_media[0].is_none(),
+            "an open rectangle found convex"
+        );
     }
 
     /// A medium sealed in closed shapes that block shadow rays, with no emitter inside,

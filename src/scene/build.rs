@@ -24,6 +24,8 @@ use crate::emitter::{BSphere, Emitter, Spot};
 use crate::error::{err_at, Result, SceneError};
 use crate::geometry::accel::{Accel, ShadowPass};
 use crate::geometry::clearance::Clearance;
+use crate::geometry::convex::ConvexBoundary;
+use crate::geometry::cuboid::Cuboid;
 use crate::geometry::mesh::{cube, read_obj, read_ply, TriangleMesh};
 use crate::geometry::serialized::read_serialized;
 use crate::geometry::shape::{Geometry, Planar, Sphere};
@@ -217,7 +219,11 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         &shadow_pass,
         b.media.len(),
     );
+    let convex_media = (0..b.media.len() as u32)
+        .map(|mi| convex_medium(mi, camera_medium, &b.geometries, &b.shapes, &accel))
+        .collect();
     Ok(Scene {
+        convex_media,
         emitters_unreachable,
         shadow_pass,
         emitter_selection,
@@ -1359,6 +1365,52 @@ fn medium_region(mi: u32, geometries: &[Geometry], shapes: &[ShapeInfo]) -> Opti
         .peekable();
     filled.peek()?;
     Some(filled.fold(Bounds::EMPTY, |r, (_, g)| r.union(&g.bounds())))
+}
+
+/// The closed convex shape medium `mi` fills, where rays in it need test only that
+/// shape (see `geometry::convex`): it fills exactly one shape, a sphere or a cube; it
+/// is the exterior of none and not the camera's (so every ray in it starts inside the
+/// shape); and no other shape's box meets that shape's box (so no other surface lies
+/// inside it).
+fn convex_medium(
+    mi: u32,
+    camera_medium: Option<u32>,
+    geometries: &[Geometry],
+    shapes: &[ShapeInfo],
+    accel: &Accel,
+) -> Option<ConvexBoundary> {
+    if camera_medium == Some(mi) || shapes.iter().any(|s| s.exterior == Some(mi)) {
+        return None;
+    }
+    let mut filled = (0..shapes.len()).filter(|&i| shapes[i].interior == Some(mi));
+    let si = filled.next()?;
+    if filled.next().is_some() {
+        return None;
+    }
+    let own = geometries[si].bounds();
+    let alone = geometries
+        .iter()
+        .enumerate()
+        .all(|(i, g)| i == si || !g.bounds().overlaps(&own));
+    if !alone {
+        return None;
+    }
+    match &geometries[si] {
+        Geometry::Sphere(_) => Some(ConvexBoundary::Sphere(si as u32)),
+        // The accelerator's box when it tests the cube as one (its hits name the
+        // triangles of its copy), else one of its own.
+        Geometry::Mesh(m) => match accel.cuboid(si as u32) {
+            Some(c) => Some(ConvexBoundary::Box {
+                cuboid: Box::new(c.clone()),
+                leaf_valid: true,
+            }),
+            None => Some(ConvexBoundary::Box {
+                cuboid: Box::new(Cuboid::new(si as u32, m, m.cube_to_world.as_ref()?)?),
+                leaf_valid: false,
+            }),
+        },
+        Geometry::Planar(_) => None,
+    }
 }
 
 /// Per medium: whether no emitter sample from a point inside it can arrive, so that

@@ -14,6 +14,7 @@ use crate::emitter::selection::EmitterSelection;
 use crate::emitter::{BSphere, Emitter};
 use crate::geometry::accel::{Accel, Hit, ShadowPass};
 use crate::geometry::clearance::Clearance;
+use crate::geometry::convex::ConvexBoundary;
 use crate::geometry::shape::Geometry;
 use crate::geometry::Frame;
 use crate::medium::HomogeneousMedium;
@@ -80,6 +81,9 @@ pub struct Scene {
     /// Lower bounds on the distance to the nearest surface (built for scenes with
     /// media, where free flights and shadow rays use them; none otherwise).
     pub clearance: Clearance,
+    /// Per medium: the closed convex shape it fills with nothing else inside, if it
+    /// is one (see `geometry::convex`).
+    pub convex_media: Vec<Option<ConvexBoundary>>,
     pub bsphere: BSphere,
     /// The scene's size: the largest half-extent of its bounding box (1 when empty).
     /// Spawned rays are offset relative to it (see [`crate::geometry::offset_point`]).
@@ -147,6 +151,25 @@ impl Scene {
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<SurfaceInteraction> {
         let hit = self.accel.intersect(&self.geometries, o, d, tmax)?;
         Some(self.interaction(o, d, &hit))
+    }
+
+    /// [`Scene::intersect`] for a ray that starts in `medium`: where the medium fills
+    /// a convex shape with nothing else inside, only that shape is tested.
+    #[inline]
+    pub fn intersect_in_medium(
+        &self,
+        medium: u32,
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+    ) -> Option<SurfaceInteraction> {
+        match &self.convex_media[medium as usize] {
+            Some(b) => {
+                let hit = b.exit(&self.geometries, o, d, tmax)?;
+                Some(self.interaction(o, d, &hit))
+            }
+            None => self.intersect(o, d, tmax),
+        }
     }
 
     #[inline]
