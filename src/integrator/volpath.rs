@@ -388,47 +388,64 @@ pub fn sample(
             } else {
                 scene.intersect_in_medium(mi, ray_o, ray_d, t.min(ray_tmax))
             };
-            match si {
-                Some(h) => {
-                    // Passed the whole segment: f = T, p_c = T_c.
-                    let tr = m.transmittance(h.t);
-                    let w = tr / tr[hero];
-                    beta *= w;
-                    d_beta *= w;
-                    r_u *= w;
-                }
-                None if t.is_finite() && t <= ray_tmax => {
-                    // Collision at t: f = T σ_t α, p_c = σ_t,c T_c.
-                    let tr = m.transmittance(t);
-                    let p_hero = m.sigma_t[hero] * tr[hero];
-                    let w = tr * m.sigma_t / p_hero;
-                    // d(β w α)/dα = dβ w α + β w in the chosen medium.
-                    d_beta_before = d_beta * w * m.albedo;
+            let collided = si.is_none() && t.is_finite() && t <= ray_tmax;
+            if m.is_grey() {
+                // Grey σ_t: f and every p_c are alike, so w = T / T = 1 for passing and
+                // σ_t T / (σ_t T) = 1 for a collision (exactly, in floating point too):
+                // only α is left, r stays (1, 1, 1), and no transmittance is needed.
+                if collided {
+                    d_beta_before = d_beta * m.albedo;
                     d_beta = if grad_medium == Some(mi) {
-                        d_beta_before + beta * w
+                        d_beta_before + beta
                     } else {
                         d_beta_before
                     };
-                    beta *= w * m.albedo;
-                    r_u *= w;
+                    beta *= m.albedo;
                     in_medium = true;
                 }
-                None => {
-                    // Left through the far end of the ray without a collision.
-                    let tr = m.transmittance(ray_tmax);
-                    let w = tr / tr[hero];
-                    beta *= w;
-                    d_beta *= w;
-                    r_u *= w;
+            } else {
+                match si {
+                    Some(h) => {
+                        // Passed the whole segment: f = T, p_c = T_c.
+                        let tr = m.transmittance(h.t);
+                        let w = tr / tr[hero];
+                        beta *= w;
+                        d_beta *= w;
+                        r_u *= w;
+                    }
+                    None if collided => {
+                        // Collision at t: f = T σ_t α, p_c = σ_t,c T_c.
+                        let tr = m.transmittance(t);
+                        let p_hero = m.sigma_t[hero] * tr[hero];
+                        let w = tr * m.sigma_t / p_hero;
+                        // d(β w α)/dα = dβ w α + β w in the chosen medium.
+                        d_beta_before = d_beta * w * m.albedo;
+                        d_beta = if grad_medium == Some(mi) {
+                            d_beta_before + beta * w
+                        } else {
+                            d_beta_before
+                        };
+                        beta *= w * m.albedo;
+                        r_u *= w;
+                        in_medium = true;
+                    }
+                    None => {
+                        // Left through the far end of the ray without a collision.
+                        let tr = m.transmittance(ray_tmax);
+                        let w = tr / tr[hero];
+                        beta *= w;
+                        d_beta *= w;
+                        r_u *= w;
+                    }
                 }
+                // Keep mean(r) = 1: scaling β and r alike leaves β / mean(r) and every later
+                // update unchanged, and keeps both bounded on long chromatic paths.
+                let k = mean(r_u);
+                beta /= k;
+                d_beta /= k;
+                d_beta_before /= k;
+                r_u /= k;
             }
-            // Keep mean(r) = 1: scaling β and r alike leaves β / mean(r) and every later
-            // update unchanged, and keeps both bounded on long chromatic paths.
-            let k = mean(r_u);
-            beta /= k;
-            d_beta /= k;
-            d_beta_before /= k;
-            r_u /= k;
             if !beta.is_finite() || !r_u.is_finite() || !d_beta.is_finite() {
                 break;
             }

@@ -34,6 +34,13 @@ impl HomogeneousMedium {
         self.albedo * self.sigma_t
     }
 
+    /// Whether σ_t is the same in every channel (then every channel's distance pdf is
+    /// the hero's).
+    #[inline]
+    pub fn is_grey(&self) -> bool {
+        self.sigma_t.x == self.sigma_t.y && self.sigma_t.y == self.sigma_t.z
+    }
+
     /// A free-flight distance sampled with the extinction of `channel` (∞ where that
     /// extinction is 0: the ray never collides).
     #[inline]
