@@ -1,8 +1,8 @@
 //! A medium that fills one closed convex shape (a sphere, or a Mitsuba `cube`) with no
 //! other surface inside: from any point in it, the first surface a ray meets is that
-//! shape's, where the ray leaves it. Free flights and shadow rays in such a medium
-//! test that one shape instead of the scene (the issue's "distance sampling that skips
-//! boundary re-intersection when the medium is convex and closed").
+//! shape's, where the ray leaves it. Free flights in such a medium test that one shape
+//! instead of the scene, and are not cast at all when shorter than the distance to it
+//! (volpath). Shadow rays keep the scene's search: they go on beyond the shape.
 
 use glam::Vec3A;
 
