@@ -392,7 +392,7 @@ pub fn sample(
             if m.is_grey() {
                 // Grey σ_t: f and every p_c are alike, so w = T / T = 1 for passing and
                 // σ_t T / (σ_t T) = 1 for a collision (exactly, in floating point too):
-                // only α is left, r stays (1, 1, 1), and no transmittance is needed.
+                // only α is left, r is unchanged, and no transmittance is needed.
                 if collided {
                     d_beta_before = d_beta * m.albedo;
                     d_beta = if grad_medium == Some(mi) {
