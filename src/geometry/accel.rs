@@ -77,6 +77,21 @@ pub struct Hit {
     pub leaf: u32,
 }
 
+impl Hit {
+    /// A hit of analytic shape `shape` at distance `t` (no triangle, no barycentrics).
+    #[inline]
+    pub fn analytic(shape: u32, t: f32) -> Hit {
+        Hit {
+            t,
+            shape,
+            prim: 0,
+            u: 0.0,
+            v: 0.0,
+            leaf: u32::MAX,
+        }
+    }
+}
+
 /// How a surface treats a shadow ray (see [`Accel::crossings`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ShadowPass {
@@ -104,7 +119,7 @@ pub const MAX_CROSSINGS: usize = 16;
 
 /// A cuboid's hit as the BVH would give it: the mesh triangle and its barycentrics.
 #[inline(always)]
-fn cuboid_hit(c: &Cuboid, h: CuboidHit) -> Hit {
+pub(super) fn cuboid_hit(c: &Cuboid, h: CuboidHit) -> Hit {
     Hit {
         t: h.t,
         shape: c.shape,
@@ -491,14 +506,7 @@ impl Accel {
         for &shape in &self.analytic {
             if let Some(t) = Self::analytic_intersect(shapes, shape, o, d, t_best) {
                 t_best = t;
-                best = Some(Hit {
-                    t,
-                    shape,
-                    prim: 0,
-                    u: 0.0,
-                    v: 0.0,
-                    leaf: u32::MAX,
-                });
+                best = Some(Hit::analytic(shape, t));
             }
         }
         for c in &self.cuboids {
@@ -599,20 +607,12 @@ impl Accel {
             ShadowPass::Blocks => Some(Crossings::Blocked),
             _ => Some(Crossings::Unsupported),
         };
-        let analytic = |shape: u32, t: f32| Hit {
-            t,
-            shape,
-            prim: 0,
-            u: 0.0,
-            v: 0.0,
-            leaf: u32::MAX,
-        };
         for &shape in &self.analytic {
             for t in Self::analytic_hits(shapes, shape, o, d, tmax)
                 .into_iter()
                 .flatten()
             {
-                if let Some(answer) = record(analytic(shape, t)) {
+                if let Some(answer) = record(Hit::analytic(shape, t)) {
                     return answer;
                 }
             }
@@ -630,7 +630,7 @@ impl Accel {
                     Self::analytic_hits(shapes, p.shape, o, d, tmax)
                         .into_iter()
                         .flatten()
-                        .find_map(|t| record(analytic(p.shape, t)))
+                        .find_map(|t| record(Hit::analytic(p.shape, t)))
                 } else {
                     self.triangles[i]
                         .intersect(o, d, tmax)

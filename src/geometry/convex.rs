@@ -6,7 +6,7 @@
 
 use glam::Vec3A;
 
-use super::accel::Hit;
+use super::accel::{cuboid_hit, Hit};
 use super::cuboid::Cuboid;
 use super::shape::Geometry;
 
@@ -56,25 +56,15 @@ impl ConvexBoundary {
                     return None;
                 };
                 let [a, b] = s.hits_within(o, d, tmax);
-                a.or(b).map(|t| Hit {
-                    t,
-                    shape: *si,
-                    prim: 0,
-                    u: 0.0,
-                    v: 0.0,
-                    leaf: u32::MAX,
-                })
+                a.or(b).map(|t| Hit::analytic(*si, t))
             }
-            ConvexBoundary::Box { cuboid, leaf_valid } => {
-                cuboid.intersect(o, d, tmax).map(|h| Hit {
-                    t: h.t,
-                    shape: cuboid.shape,
-                    prim: h.prim,
-                    u: h.u,
-                    v: h.v,
-                    leaf: if *leaf_valid { h.leaf } else { u32::MAX },
-                })
-            }
+            ConvexBoundary::Box { cuboid, leaf_valid } => cuboid.intersect(o, d, tmax).map(|h| {
+                let hit = cuboid_hit(cuboid, h);
+                Hit {
+                    leaf: if *leaf_valid { hit.leaf } else { u32::MAX },
+                    ..hit
+                }
+            }),
         }
     }
 }
