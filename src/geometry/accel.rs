@@ -400,8 +400,8 @@ impl Accel {
         self.cuboids.iter().find(|c| c.shape == shape)
     }
 
-    /// Closest-hit traversal of the BVH (obvhs's `ray_traverse` with the node test
-    /// below): `leaf(tmax, primitive)` tests a primitive against the ray as far as
+    /// Closest-hit traversal of the BVH (obvhs's `ray_traverse` with [`node_hits`] as
+    /// its node test): `leaf(tmax, primitive)` tests a primitive against the ray as far as
     /// `tmax` and answers its hit distance (∞ for none); a closer one shortens the
     /// ray, and a distance ≤ 0 ends the traversal.
     #[inline(always)]
