@@ -113,6 +113,17 @@ pub enum Crossings {
     Unsupported,
 }
 
+/// A surface a shadow ray crosses: where, which shape, and whether the ray crosses
+/// along the surface's geometric normal (`d · n > 0`, `n` after `flip_normals`), all
+/// it needs to know which medium lies beyond (Mitsuba's `target_medium`). The side is
+/// read where the hit test has the surface at hand: no normal is looked up after.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Crossing {
+    pub t: f32,
+    pub shape: u32,
+    pub along_normal: bool,
+}
+
 /// Crossings one shadow traversal collects before it gives up (see
 /// [`Accel::crossings`]).
 pub const MAX_CROSSINGS: usize = 16;
@@ -577,8 +588,8 @@ impl Accel {
     /// traversal instead of one closest-hit cast per crossing (a ray out of a mesh
     /// boundary crosses it about twice on the Bunny, a ray out of a sphere once, and
     /// each cast of the old way ended in a second one to find nothing beyond). `pass[shape]`
-    /// says how each shape treats the ray. The hits go into `out` in the order found
-    /// (not sorted).
+    /// says how each shape treats the ray. The crossings go into `out` in the order
+    /// found (not sorted), each with the side it crosses to.
     ///
     /// A blocking surface ends the search at once: whatever else lies on the ray,
     /// nothing gets through. A BVH that holds analytic shapes, a thin-dielectric
@@ -591,16 +602,16 @@ impl Accel {
         o: Vec3A,
         d: Vec3A,
         tmax: f32,
-        out: &mut [Hit; MAX_CROSSINGS],
+        out: &mut [Crossing; MAX_CROSSINGS],
     ) -> Crossings {
         if self.mixed && self.traverses_bvh() {
             return Crossings::Unsupported;
         }
         let mut n = 0;
-        // Records a hit; Some(answer) when the search is over.
-        let mut record = |hit: Hit| match pass[hit.shape as usize] {
+        // Records a crossing; Some(answer) when the search is over.
+        let mut record = |c: Crossing| match pass[c.shape as usize] {
             ShadowPass::Passes if n < MAX_CROSSINGS => {
-                out[n] = hit;
+                out[n] = c;
                 n += 1;
                 None
             }
@@ -608,19 +619,40 @@ impl Accel {
             _ => Some(Crossings::Unsupported),
         };
         for &shape in &self.analytic {
-            for t in Self::analytic_hits(shapes, shape, o, d, tmax)
-                .into_iter()
-                .flatten()
-            {
-                if let Some(answer) = record(Hit::analytic(shape, t)) {
+            let hits = Self::analytic_hits(shapes, shape, o, d, tmax);
+            for t in hits.into_iter().flatten() {
+                let c = Self::analytic_crossing(shapes, shape, o, d, t);
+                if let Some(answer) = record(c) {
                     return answer;
                 }
             }
         }
         for c in &self.cuboids {
-            for h in c.hits_within(o, d, tmax).into_iter().flatten() {
-                if let Some(answer) = record(cuboid_hit(c, h)) {
-                    return answer;
+            let shape = c.shape;
+            if let Some(exit_along) = c.exit_along_normal {
+                // Entry first, then exit: the box's side is the whole face's.
+                let [entry, exit] = c.span_within(o, d, tmax);
+                for (t, along_normal) in [(entry, !exit_along), (exit, exit_along)] {
+                    let Some(t) = t else { continue };
+                    if let Some(answer) = record(Crossing {
+                        t,
+                        shape,
+                        along_normal,
+                    }) {
+                        return answer;
+                    }
+                }
+            } else {
+                for h in c.hits_within(o, d, tmax).into_iter().flatten() {
+                    let along_normal =
+                        self.triangle_along_normal(shapes, shape, h.leaf as usize, d);
+                    if let Some(answer) = record(Crossing {
+                        t: h.t,
+                        shape,
+                        along_normal,
+                    }) {
+                        return answer;
+                    }
                 }
             }
         }
@@ -630,11 +662,17 @@ impl Accel {
                     Self::analytic_hits(shapes, p.shape, o, d, tmax)
                         .into_iter()
                         .flatten()
-                        .find_map(|t| record(Hit::analytic(p.shape, t)))
+                        .find_map(|t| record(Self::analytic_crossing(shapes, p.shape, o, d, t)))
                 } else {
                     self.triangles[i]
                         .intersect(o, d, tmax)
-                        .and_then(|(t, u, v)| record(self.hit(i, t, u, v)))
+                        .and_then(|(t, _, _)| {
+                            record(Crossing {
+                                t,
+                                shape: p.shape,
+                                along_normal: self.triangle_along_normal(shapes, p.shape, i, d),
+                            })
+                        })
                 };
                 if let Some(answer) = answer {
                     return answer;
@@ -645,10 +683,16 @@ impl Accel {
         let (ray, _) = traversal_ray(o, d, tmax);
         let mut answer = None;
         self.traverse(ray, |_, id| {
-            let Some((t, u, v)) = self.triangles[id].intersect(o, d, tmax) else {
+            let Some((t, _, _)) = self.triangles[id].intersect(o, d, tmax) else {
                 return f32::INFINITY;
             };
-            match record(self.hit(id, t, u, v)) {
+            let shape = self.prims[id].shape;
+            let along_normal = self.triangle_along_normal(shapes, shape, id, d);
+            match record(Crossing {
+                t,
+                shape,
+                along_normal,
+            }) {
                 // Not a closer hit for the traversal: the ray's extent stays.
                 None => f32::INFINITY,
                 // A distance of 0 culls every remaining node: the traversal ends.
@@ -659,6 +703,39 @@ impl Accel {
             }
         });
         answer.unwrap_or(Crossings::Found(n))
+    }
+
+    /// Whether direction `d` crosses the triangle at `leaf` of mesh `shape` along its
+    /// geometric normal (p1 − p0) × (p2 − p0), after `flip_normals`.
+    #[inline(always)]
+    fn triangle_along_normal(
+        &self,
+        shapes: &[Geometry],
+        shape: u32,
+        leaf: usize,
+        d: Vec3A,
+    ) -> bool {
+        let tri = &self.triangles[leaf];
+        let along = d.dot(tri.e1.cross(tri.e2)) > 0.0;
+        match &shapes[shape as usize] {
+            Geometry::Mesh(m) => along != m.flip_normals,
+            _ => along,
+        }
+    }
+
+    /// The crossing of the ray with analytic shape `shape` at `t`.
+    #[inline(always)]
+    fn analytic_crossing(shapes: &[Geometry], shape: u32, o: Vec3A, d: Vec3A, t: f32) -> Crossing {
+        let n = match &shapes[shape as usize] {
+            Geometry::Sphere(s) => s.normal_at(o + d * t),
+            Geometry::Planar(pl) => pl.normal,
+            Geometry::Mesh(_) => Vec3A::ZERO,
+        };
+        Crossing {
+            t,
+            shape,
+            along_normal: d.dot(n) > 0.0,
+        }
     }
 
     /// Whether anything blocks `o + t d` for 0 < t < tmax.

@@ -64,6 +64,10 @@ pub struct Cuboid {
     face_spacing: Vec3A,
     /// Per face `2k + (side > 0)` on axis `k`: its two triangles.
     faces: [[FaceTriangle; 2]; 6],
+    /// Whether a ray leaving the box crosses along the triangles' geometric normals
+    /// (after `flip_normals`; one entering then crosses against them): what a shadow
+    /// ray needs of its crossings. None when the mesh's triangles face both ways.
+    pub exit_along_normal: Option<bool>,
 }
 
 /// The face coordinates (a, b) of a point on a face of axis `k`: the next two axes.
@@ -116,6 +120,19 @@ impl Cuboid {
         if faces.iter().any(Option::is_none) {
             return None;
         }
+        // Each triangle faces out if its normal (p1 − p0) × (p2 − p0) points away from
+        // the box's centre.
+        let centre = Vec3A::from(to_world.transform_point3(Vec3::ZERO));
+        let faces_out: Vec<bool> = (0..12)
+            .map(|i| {
+                let [p0, p1, p2] = mesh.vertices(i);
+                (p1 - p0).cross(p2 - p0).dot((p0 + p1 + p2) / 3.0 - centre) > 0.0
+            })
+            .collect();
+        let exit_along_normal = faces_out
+            .iter()
+            .all(|&o| o == faces_out[0])
+            .then_some(faces_out[0] != mesh.flip_normals);
         let m = to_local.matrix3;
         let grad_len = (m.x_axis * m.x_axis + m.y_axis * m.y_axis + m.z_axis * m.z_axis).sqrt();
         Some(Cuboid {
@@ -124,6 +141,7 @@ impl Cuboid {
             to_local,
             face_spacing: grad_len.recip(),
             faces: faces.map(Option::unwrap),
+            exit_along_normal,
         })
     }
 
@@ -223,6 +241,16 @@ impl Cuboid {
             within(t_near).then(|| self.hit_on(ol, dl, t_near, near_face)),
             within(t_far).then(|| self.hit_on(ol, dl, t_far, far_face)),
         ]
+    }
+
+    /// The entry and exit distances within 0 < t < tmax (each None where outside).
+    #[inline]
+    pub fn span_within(&self, o: Vec3A, d: Vec3A, tmax: f32) -> [Option<f32>; 2] {
+        let Some((_, _, t_near, _, t_far, _)) = self.slabs(o, d) else {
+            return [None, None];
+        };
+        let within = |t: f32| (t > 0.0 && t < tmax).then_some(t);
+        [within(t_near), within(t_far)]
     }
 
     /// Whether anything of the box lies on the ray for 0 < t < tmax.
@@ -353,5 +381,41 @@ mod tests {
         let flat = Mat4::from_scale(glam::Vec3::new(1.0, 0.0, 1.0));
         let m = TriangleMesh::new(cube(), &flat, true, false, Path::new("cube")).unwrap();
         assert!(Cuboid::new(0, &m, &flat).is_none(), "a degenerate box");
+    }
+
+    /// A ray leaving the box crosses along the triangles' normals where they face out
+    /// (as the cube's do, mirrored too) and against them with `flip_normals`, as each
+    /// face's triangle itself says; a mesh wound both ways has no one side.
+    #[test]
+    fn the_exit_side_is_the_triangles() {
+        let mirror = Mat4::from_rotation_y(0.4) * Mat4::from_scale(Vec3::new(-1.0, 0.5, 1.0));
+        for (to_world, flip) in [
+            (Mat4::IDENTITY, false),
+            (Mat4::IDENTITY, true),
+            (mirror, false),
+            (mirror, true),
+        ] {
+            let m = TriangleMesh::new(cube(), &to_world, true, flip, Path::new("cube")).unwrap();
+            let c = Cuboid::new(0, &m, &to_world).expect("a cube is a box");
+            assert_eq!(c.exit_along_normal, Some(!flip), "{to_world} flip {flip}");
+            // Out of the centre through every face (off its diagonal): the hit triangle's
+            // normal agrees.
+            let o = to_world.transform_point3a(Vec3A::ZERO);
+            for k in 0..6 {
+                let mut axis = Vec3A::splat(0.3);
+                axis[(k / 2 + 1) % 3] = -0.2;
+                axis[k / 2] = if k % 2 == 0 { -1.0 } else { 1.0 };
+                let d = to_world.transform_vector3a(axis).normalize();
+                let (_, prim) = triangle_hits(&m, o, d, f32::INFINITY)[0];
+                let [p0, p1, p2] = m.vertices(prim);
+                let n = (p1 - p0).cross(p2 - p0) * if flip { -1.0 } else { 1.0 };
+                assert_eq!(d.dot(n) > 0.0, !flip, "{to_world} flip {flip} face {k}");
+            }
+        }
+        let mut raw = cube();
+        raw.triangles[3].swap(1, 2);
+        let m = TriangleMesh::new(raw, &Mat4::IDENTITY, true, false, Path::new("cube")).unwrap();
+        let c = Cuboid::new(0, &m, &Mat4::IDENTITY).expect("still a box");
+        assert_eq!(c.exit_along_normal, None);
     }
 }

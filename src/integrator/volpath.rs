@@ -53,7 +53,7 @@ use super::path::mis_weight;
 use super::sampler::Pcg32;
 use super::{sample_light_at_surface, skip_emitters};
 use crate::bsdf::Bsdf;
-use crate::geometry::accel::{Crossings, Hit, MAX_CROSSINGS};
+use crate::geometry::accel::{Crossing, Crossings, MAX_CROSSINGS};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::medium::{transmittance, HomogeneousMedium};
 use crate::scene::{Scene, ShapeInfo, SurfaceInteraction};
@@ -71,9 +71,16 @@ const MAX_NULL_CROSSINGS: u32 = 1 << 16;
 /// (Mitsuba's `target_medium`), or `current` when the surface is no medium boundary.
 #[inline]
 fn medium_after(info: &ShapeInfo, n: Vec3A, d: Vec3A, current: Option<u32>) -> Option<u32> {
+    medium_beyond(info, d.dot(n) > 0.0, current)
+}
+
+/// [`medium_after`] by the side crossed: along the geometric normal (`d · n > 0`),
+/// out to the exterior.
+#[inline]
+fn medium_beyond(info: &ShapeInfo, along_normal: bool, current: Option<u32>) -> Option<u32> {
     if info.interior.is_none() && info.exterior.is_none() {
         current
-    } else if d.dot(n) > 0.0 {
+    } else if along_normal {
         info.exterior
     } else {
         info.interior
@@ -89,30 +96,28 @@ fn medium_after(info: &ShapeInfo, n: Vec3A, d: Vec3A, current: Option<u32>) -> O
 /// ([`Accel::crossings`](crate::geometry::accel::Accel::crossings)); else one ray is
 /// cast per crossing, as Mitsuba does.
 fn shadow_transmittance(scene: &Scene, o: Vec3A, d: Vec3A, dist: f32, medium: Option<u32>) -> Vec3 {
-    let mut hits = [Hit::default(); MAX_CROSSINGS];
+    let mut hits = [Crossing::default(); MAX_CROSSINGS];
     let g = &scene.geometries;
     match scene
         .accel
         .crossings(g, &scene.shadow_pass, o, d, dist, &mut hits)
     {
         Crossings::Blocked => Vec3::ZERO,
-        Crossings::Found(n) => through_crossings(scene, o, d, dist, medium, &mut hits[..n]),
+        Crossings::Found(n) => through_crossings(scene, dist, medium, &mut hits[..n]),
         Crossings::Unsupported => shadow_transmittance_stepwise(scene, o, d, dist, medium),
     }
 }
 
-/// The transmittance of the shadow ray (o, d) over `dist` whose pass-through crossings
+/// The transmittance of a shadow ray over `dist` whose pass-through crossings
 /// are `hits` (in any order): the segments between them in turn, each in the medium
 /// the previous crossing entered. A surface found twice at one distance (on an edge
 /// shared by two triangles) changes nothing: the second crossing enters the medium the
 /// first did, after a segment of length 0.
 fn through_crossings(
     scene: &Scene,
-    o: Vec3A,
-    d: Vec3A,
     dist: f32,
     mut medium: Option<u32>,
-    hits: &mut [Hit],
+    hits: &mut [Crossing],
 ) -> Vec3 {
     hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t));
     let mut tr = Vec3::ONE;
@@ -122,8 +127,7 @@ fn through_crossings(
             tr *= transmittance(scene.media[m as usize].sigma_t, h.t - start);
         }
         start = h.t;
-        let n = scene.normal_at_hit(o, d, h);
-        medium = medium_after(&scene.shapes[h.shape as usize], n, d, medium);
+        medium = medium_beyond(&scene.shapes[h.shape as usize], h.along_normal, medium);
     }
     if let Some(m) = medium {
         tr *= transmittance(scene.media[m as usize].sigma_t, dist - start);
@@ -745,7 +749,7 @@ mod tests {
             let ball = if cubes { 4 } else { 1 };
             let mut rng = Pcg32::new(7, 3);
             let (mut blocked, mut multi, mut in_ball) = (0, 0, 0);
-            let mut hits = [Hit::default(); MAX_CROSSINGS];
+            let mut hits = [Crossing::default(); MAX_CROSSINGS];
             for _ in 0..20_000 {
                 let u = Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d());
                 let o = Vec3A::new(-2.0, -2.0, -1.0) + u * Vec3A::new(4.0, 4.0, 3.0);
@@ -793,7 +797,7 @@ mod tests {
             for dir in [1.0f32, -1.0] {
                 let o = Vec3A::new(x, y, -2.0 * dir);
                 let d = Vec3A::new(0.0, 0.0, dir);
-                let mut hits = [Hit::default(); MAX_CROSSINGS];
+                let mut hits = [Crossing::default(); MAX_CROSSINGS];
                 let g = &scene.geometries;
                 let found = scene
                     .accel

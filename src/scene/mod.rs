@@ -193,25 +193,6 @@ impl Scene {
             })
     }
 
-    /// The geometric normal (after `flip_normals`) at `hit`, a hit of the ray (o, d):
-    /// all a shadow ray needs of a surface it passes through (which side it crosses).
-    #[inline]
-    pub fn normal_at_hit(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> Vec3A {
-        match &self.geometries[hit.shape as usize] {
-            Geometry::Mesh(m) => {
-                // A triangle's hit always names its place in the accelerator's copy.
-                let n = self.accel.triangle_surface(hit.leaf, hit.u, hit.v).1;
-                if m.flip_normals {
-                    -n
-                } else {
-                    n
-                }
-            }
-            Geometry::Sphere(s) => s.normal_at(o + d * hit.t),
-            Geometry::Planar(pl) => pl.normal,
-        }
-    }
-
     /// The local geometry at `hit`, a hit of the ray (o, d).
     pub fn interaction(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> SurfaceInteraction {
         let info = &self.shapes[hit.shape as usize];
