@@ -2,7 +2,7 @@
 //! `perspective_projection` in `include/mitsuba/render/sensor.h`).
 //!
 //! Camera space looks down +z with +x to the image's *left* and +y up (Mitsuba's
-//! `look_at` puts `left` in the first column). For a film position `s` ∈ [0,1]² relative
+//! `look_at` puts `left` in the first column). For a film position `s` ∈ \[0,1\]² relative
 //! to the full film (plus the principal point offset), the camera-space direction on the
 //! z = 1 plane is
 //!
