@@ -644,13 +644,8 @@ impl Accel {
                 }
             } else {
                 for h in c.hits_within(o, d, tmax).into_iter().flatten() {
-                    let along_normal =
-                        self.triangle_along_normal(shapes, shape, h.leaf as usize, d);
-                    if let Some(answer) = record(Crossing {
-                        t: h.t,
-                        shape,
-                        along_normal,
-                    }) {
+                    let crossing = self.triangle_crossing(shapes, shape, h.leaf as usize, h.t, d);
+                    if let Some(answer) = record(crossing) {
                         return answer;
                     }
                 }
@@ -667,11 +662,7 @@ impl Accel {
                     self.triangles[i]
                         .intersect(o, d, tmax)
                         .and_then(|(t, _, _)| {
-                            record(Crossing {
-                                t,
-                                shape: p.shape,
-                                along_normal: self.triangle_along_normal(shapes, p.shape, i, d),
-                            })
+                            record(self.triangle_crossing(shapes, p.shape, i, t, d))
                         })
                 };
                 if let Some(answer) = answer {
@@ -686,13 +677,7 @@ impl Accel {
             let Some((t, _, _)) = self.triangles[id].intersect(o, d, tmax) else {
                 return f32::INFINITY;
             };
-            let shape = self.prims[id].shape;
-            let along_normal = self.triangle_along_normal(shapes, shape, id, d);
-            match record(Crossing {
-                t,
-                shape,
-                along_normal,
-            }) {
+            match record(self.triangle_crossing(shapes, self.prims[id].shape, id, t, d)) {
                 // Not a closer hit for the traversal: the ray's extent stays.
                 None => f32::INFINITY,
                 // A distance of 0 culls every remaining node: the traversal ends.
@@ -705,21 +690,25 @@ impl Accel {
         answer.unwrap_or(Crossings::Found(n))
     }
 
-    /// Whether direction `d` crosses the triangle at `leaf` of mesh `shape` along its
-    /// geometric normal (p1 − p0) × (p2 − p0), after `flip_normals`.
+    /// The crossing of direction `d` at `t` through the triangle at `leaf` of mesh
+    /// `shape`: along its geometric normal (p1 − p0) × (p2 − p0), after `flip_normals`,
+    /// or against it.
     #[inline(always)]
-    fn triangle_along_normal(
+    fn triangle_crossing(
         &self,
         shapes: &[Geometry],
         shape: u32,
         leaf: usize,
+        t: f32,
         d: Vec3A,
-    ) -> bool {
+    ) -> Crossing {
         let tri = &self.triangles[leaf];
         let along = d.dot(tri.e1.cross(tri.e2)) > 0.0;
-        match &shapes[shape as usize] {
-            Geometry::Mesh(m) => along != m.flip_normals,
-            _ => along,
+        let flip = matches!(&shapes[shape as usize], Geometry::Mesh(m) if m.flip_normals);
+        Crossing {
+            t,
+            shape,
+            along_normal: along != flip,
         }
     }
 
