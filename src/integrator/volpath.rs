@@ -53,7 +53,7 @@ use super::path::mis_weight;
 use super::sampler::Pcg32;
 use super::{sample_light_at_surface, skip_emitters};
 use crate::bsdf::Bsdf;
-use crate::geometry::accel::{Crossing, Crossings, MAX_CROSSINGS};
+use crate::geometry::accel::{Crossing, CrossingList, Crossings};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::medium::{transmittance, HomogeneousMedium};
 use crate::scene::{Scene, ShapeInfo, SurfaceInteraction};
@@ -96,14 +96,14 @@ fn medium_beyond(info: &ShapeInfo, along_normal: bool, current: Option<u32>) -> 
 /// ([`Accel::crossings`](crate::geometry::accel::Accel::crossings)); else one ray is
 /// cast per crossing, as Mitsuba does.
 fn shadow_transmittance(scene: &Scene, o: Vec3A, d: Vec3A, dist: f32, medium: Option<u32>) -> Vec3 {
-    let mut hits = [Crossing::default(); MAX_CROSSINGS];
+    let mut hits = CrossingList::new();
     let g = &scene.geometries;
     match scene
         .accel
         .crossings(g, &scene.shadow_pass, o, d, dist, &mut hits)
     {
         Crossings::Blocked => Vec3::ZERO,
-        Crossings::Found(n) => through_crossings(scene, dist, medium, &mut hits[..n]),
+        Crossings::Found => through_crossings(scene, dist, medium, &mut hits),
         Crossings::Unsupported => shadow_transmittance_stepwise(scene, o, d, dist, medium),
     }
 }
@@ -749,7 +749,7 @@ mod tests {
             let ball = if cubes { 4 } else { 1 };
             let mut rng = Pcg32::new(7, 3);
             let (mut blocked, mut multi, mut in_ball) = (0, 0, 0);
-            let mut hits = [Crossing::default(); MAX_CROSSINGS];
+            let mut hits = CrossingList::new();
             for _ in 0..20_000 {
                 let u = Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d());
                 let o = Vec3A::new(-2.0, -2.0, -1.0) + u * Vec3A::new(4.0, 4.0, 3.0);
@@ -764,9 +764,9 @@ mod tests {
                     .crossings(g, &scene.shadow_pass, o, d, dist, &mut hits)
                 {
                     Crossings::Blocked => blocked += 1,
-                    Crossings::Found(n) => {
-                        multi += usize::from(n >= 2);
-                        in_ball += usize::from(hits[..n].iter().any(|h| h.shape == ball));
+                    Crossings::Found => {
+                        multi += usize::from(hits.len() >= 2);
+                        in_ball += usize::from(hits.iter().any(|h| h.shape == ball));
                     }
                     Crossings::Unsupported => panic!("unsupported without thin dielectrics"),
                 }
@@ -797,12 +797,12 @@ mod tests {
             for dir in [1.0f32, -1.0] {
                 let o = Vec3A::new(x, y, -2.0 * dir);
                 let d = Vec3A::new(0.0, 0.0, dir);
-                let mut hits = [Crossing::default(); MAX_CROSSINGS];
+                let mut hits = CrossingList::new();
                 let g = &scene.geometries;
                 let found = scene
                     .accel
                     .crossings(g, &scene.shadow_pass, o, d, 4.0, &mut hits);
-                repeats += usize::from(matches!(found, Crossings::Found(n) if n > 2));
+                repeats += usize::from(found == Crossings::Found && hits.len() > 2);
                 // From outside: 1 unit in the medium. Starting "in" it outside the cube
                 // (the rules do not check): 1.5 units of it, then the cube's 1 unit,
                 // then none after leaving it.
