@@ -121,19 +121,16 @@ impl Emitter {
                 let g = &shapes[*shape as usize];
                 // Spheres seen from outside: sample the cone of the visible cap.
                 if let Geometry::Sphere(sp) = g {
-                    if let Some((p, n, pdf)) = sp.sample_cone(p_ref, s) {
-                        let n = if sp.flip_normals { -n } else { n };
-                        let v = p - p_ref;
-                        let dist = v.length();
-                        let d = v / dist;
-                        if dist.is_nan() || dist <= 0.0 || n.dot(d) >= 0.0 || !pdf.is_finite() {
+                    if let Some(c) = sp.sample_cone(p_ref, s) {
+                        let n = if sp.flip_normals { -c.n } else { c.n };
+                        if !(c.dist > 0.0) || n.dot(c.d) >= 0.0 || !c.pdf.is_finite() {
                             return None;
                         }
                         return Some(EmitterSample {
-                            d,
-                            p,
-                            pdf,
-                            weight: *radiance / pdf,
+                            d: c.d,
+                            p: c.p,
+                            pdf: c.pdf,
+                            weight: *radiance / c.pdf,
                             delta: false,
                         });
                     }

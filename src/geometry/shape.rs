@@ -119,6 +119,20 @@ pub fn square_to_uniform_disk_concentric(s: Vec2) -> (f32, f32) {
     (r * c, r * s)
 }
 
+/// A direction toward a sphere from [`Sphere::sample_cone`].
+#[derive(Clone, Copy, Debug)]
+pub struct ConeSample {
+    /// Unit direction from the reference point.
+    pub d: Vec3A,
+    /// Distance to the point it meets the sphere at.
+    pub dist: f32,
+    pub p: Vec3A,
+    /// Outward unit normal there (before `flip_normals`).
+    pub n: Vec3A,
+    /// Solid-angle pdf.
+    pub pdf: f32,
+}
+
 /// Uniform pdf over a cone of half-angle θ_max.
 #[inline]
 fn cone_pdf(cos_max: f32) -> f32 {
@@ -209,28 +223,44 @@ impl Sphere {
 
     /// Mitsuba's `Sphere::sample_direction` from outside: a direction uniform in the cone
     /// of the visible cap (pdf `1 / (2π (1 − cos θ_max))`), and the point it hits.
-    /// Returns (point, outward normal, solid-angle pdf), or `None` from inside.
-    pub fn sample_cone(&self, p_ref: Vec3A, s: Vec2) -> Option<(Vec3A, Vec3A, f32)> {
+    /// Returns the sample, or `None` from inside.
+    ///
+    /// Mitsuba draws the point on the sphere (by its angle at the centre) and the
+    /// direction toward it after; here the direction comes first and the point is where
+    /// it meets the sphere: the same distribution, with fewer square roots and
+    /// divisions one after the other (this was 15% of the render time of a fog lit by a
+    /// sphere).
+    #[inline]
+    pub fn sample_cone(&self, p_ref: Vec3A, s: Vec2) -> Option<ConeSample> {
         let (cos_max, sin2_max) = self.cone_cos_max(p_ref)?;
         let dc = self.center - p_ref;
-        // Small cones: Taylor expansion avoids cancellation in 1 − cos² (Mitsuba, 1.5°).
-        let sin2 = if sin2_max > 0.000_685_23 {
+        let dc2 = dc.length_squared();
+        let dc_len = dc2.sqrt();
+        // cos θ uniform in [cos θ_max, 1]. Small cones: the Taylor expansion avoids the
+        // cancellation in 1 − cos² (Mitsuba's, below 1.5°).
+        let (cos_t, sin2) = if sin2_max > 0.000_685_23 {
             let c = (cos_max - 1.0) * s.x + 1.0;
-            1.0 - c * c
+            (c, (1.0 - c * c).max(0.0))
         } else {
-            sin2_max * s.x
+            let sin2 = sin2_max * s.x;
+            ((1.0 - sin2).sqrt(), sin2)
         };
-        let cos_t = (1.0 - sin2).max(0.0).sqrt();
-        // The angle at the centre between −dc and the hit point (akalin.com, visible sphere).
-        let inv_sin_max = 1.0 / sin2_max.sqrt();
-        let cos_a =
-            sin2 * inv_sin_max + cos_t * (1.0 - sin2 * inv_sin_max * inv_sin_max).max(0.0).sqrt();
-        let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
+        let sin_t = sin2.sqrt();
         let (sp, cp) = (2.0 * std::f32::consts::PI * s.y).sin_cos();
-        let local = Vec3A::new(cp * sin_a, sp * sin_a, cos_a);
-        let n = super::Frame::new(-dc.normalize()).to_world(local);
-        let p = self.center + n * self.radius;
-        Some((p, n, cone_pdf(cos_max)))
+        let d = super::Frame::new(dc / dc_len).to_world(Vec3A::new(cp * sin_t, sp * sin_t, cos_t));
+        // The nearer root of |p_ref + t d − c|² = r²: t = |dc| cos θ − √(r² − |dc|² sin² θ),
+        // written by the product of the roots (|dc|² − r²) so that nothing cancels.
+        let r2 = self.radius * self.radius;
+        let half_chord = (r2 - dc2 * sin2).max(0.0).sqrt();
+        let dist = (dc2 - r2) / (dc_len * cos_t + half_chord);
+        let p = p_ref + d * dist;
+        Some(ConeSample {
+            d,
+            dist,
+            p,
+            n: (p - self.center).normalize(),
+            pdf: cone_pdf(cos_max),
+        })
     }
 
     /// The pdf `sample_cone` gives any direction toward the sphere from `p_ref`, or `None`
@@ -311,12 +341,16 @@ mod tests {
             for i in 0..n {
                 for j in 0..n {
                     let s = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
-                    let (p, nrm, pdf) = sp.sample_cone(p_ref, s).unwrap();
-                    let d = (p - p_ref).normalize();
+                    let c = sp.sample_cone(p_ref, s).unwrap();
+                    let (p, nrm, pdf, d) = (c.p, c.n, c.pdf, c.d);
+                    assert!((d.length() - 1.0).abs() < 1e-5, "a unit direction");
+                    assert!((p - p_ref - d * c.dist).length() < 1e-5 * c.dist);
+                    assert!(((p - sp.center).length() - sp.radius).abs() < 1e-5);
+                    assert!((nrm.length() - 1.0).abs() < 1e-5);
                     let t = sp
                         .intersect(p_ref, d, f32::MAX)
                         .expect("the sample must hit");
-                    assert!((t - (p - p_ref).length()).abs() < 1e-3 * t, "hit at {t}");
+                    assert!((t - c.dist).abs() < 1e-4 * t, "hit at {t}, not {}", c.dist);
                     assert!(nrm.dot(d) < 1e-3, "a visible point faces the reference");
                     assert!((pdf - sp.cone_pdf(p_ref).unwrap()).abs() < 1e-3 * pdf);
                     mean += d.dot(axis) as f64;
