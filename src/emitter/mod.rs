@@ -123,7 +123,11 @@ impl Emitter {
                 if let Geometry::Sphere(sp) = g {
                     if let Some(c) = sp.sample_cone(p_ref, s) {
                         let n = if sp.flip_normals { -c.n } else { c.n };
-                        if !(c.dist > 0.0) || n.dot(c.d) >= 0.0 || !c.pdf.is_finite() {
+                        if c.dist.is_nan()
+                            || c.dist <= 0.0
+                            || n.dot(c.d) >= 0.0
+                            || !c.pdf.is_finite()
+                        {
                             return None;
                         }
                         return Some(EmitterSample {
