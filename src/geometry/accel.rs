@@ -720,15 +720,16 @@ impl Accel {
     /// The crossing of the ray with analytic shape `shape` at `t`.
     #[inline(always)]
     fn analytic_crossing(shapes: &[Geometry], shape: u32, o: Vec3A, d: Vec3A, t: f32) -> Crossing {
-        let n = match &shapes[shape as usize] {
-            Geometry::Sphere(s) => s.normal_at(o + d * t),
-            Geometry::Planar(pl) => pl.normal,
-            Geometry::Mesh(_) => Vec3A::ZERO,
+        // Only the sign of d · n is wanted: a sphere's normal needs no normalising.
+        let along_normal = match &shapes[shape as usize] {
+            Geometry::Sphere(s) => (d.dot(o + d * t - s.center) > 0.0) != s.flip_normals,
+            Geometry::Planar(pl) => d.dot(pl.normal) > 0.0,
+            Geometry::Mesh(_) => false,
         };
         Crossing {
             t,
             shape,
-            along_normal: d.dot(n) > 0.0,
+            along_normal,
         }
     }
 
