@@ -16,6 +16,7 @@ use mediareg::regularize::spatial::BilateralParams;
 use mediareg::regularize::{self, CBeta, Method, Reproject};
 use mediareg::report::mitsuba::MitsubaRunner;
 use mediareg::report::{self, Budget, TableOptions};
+use mediareg::scene::ray_log::{self, RayLog};
 use mediareg::scene::{IntegratorKind, Scene};
 use mediareg::{image, integrator, load_scene, xml, BuildOverrides};
 
@@ -139,6 +140,12 @@ enum Command {
         /// scene has several.
         #[arg(long, value_name = "ID", requires = "gradient")]
         medium: Option<String>,
+        /// Record every ray the render casts into the scene to FILE (for
+        /// scripts/cast_bound), then cast them again one by one on one thread and write
+        /// how long each kind took to FILE.json. Slows the render down. Needs a build
+        /// with the ray-log feature.
+        #[arg(long, value_name = "FILE")]
+        ray_log: Option<PathBuf>,
     },
     /// The paper's method: render at source albedo factor × the scene's, denoise the
     /// albedo gradient over a camera sequence, predict the image at the scene's albedo.
@@ -376,6 +383,50 @@ fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
     Ok((scene, out_exr))
 }
 
+/// `render --ray-log`: the rays to `path`, and to `path`.json how many of each kind a
+/// sample cast and how long each takes cast again here (see `scene::ray_log`).
+fn write_ray_log(
+    path: &Path,
+    scene: &Scene,
+    log: RayLog,
+    stats: &integrator::RenderStats,
+) -> Result<()> {
+    let rays = log.into_rays();
+    ray_log::write(path, &rays).with_context(|| format!("writing {}", path.display()))?;
+    let timings = ray_log::time_casts(scene, &rays, 5);
+    let samples = stats.samples.max(1) as f64;
+    let kinds: Vec<serde_json::Value> = timings
+        .iter()
+        .map(|t| {
+            eprintln!(
+                "ray log: {} casts of kind \"{}\", {:.3} a sample, {:.1} ns each cast again on one thread",
+                t.count,
+                t.kind.name(),
+                t.count as f64 / samples,
+                t.ns_per_ray
+            );
+            serde_json::json!({
+                "kind": t.kind as u8,
+                "name": t.kind.name(),
+                "count": t.count,
+                "per_sample": t.count as f64 / samples,
+                "ns_per_ray": t.ns_per_ray,
+            })
+        })
+        .collect();
+    let summary = serde_json::json!({
+        "rays": path.file_name().map(|n| n.to_string_lossy().into_owned()),
+        "samples": stats.samples,
+        "render_seconds": stats.seconds,
+        "threads": rayon::current_num_threads(),
+        "casts": kinds,
+    });
+    let json = path.with_extension("json");
+    std::fs::write(&json, serde_json::to_string_pretty(&summary)?)
+        .with_context(|| format!("writing {}", json.display()))?;
+    Ok(())
+}
+
 /// OUT.exr with `_suffix` added to its stem.
 fn sibling(out_exr: &Path, suffix: &str) -> PathBuf {
     let stem = out_exr.file_stem().unwrap_or_default().to_string_lossy();
@@ -388,8 +439,15 @@ fn run(cli: Cli) -> Result<()> {
             args,
             gradient,
             medium,
+            ray_log,
         } => {
-            let (scene_data, out_exr) = prepare(&args)?;
+            let (mut scene_data, out_exr) = prepare(&args)?;
+            if ray_log.is_some() {
+                if !cfg!(feature = "ray-log") {
+                    bail!("--ray-log needs a build with the ray-log feature: cargo build --release --features ray-log");
+                }
+                scene_data.ray_log = Some(RayLog::default());
+            }
             let gradient = match gradient {
                 None => Gradient::None,
                 Some(GradientArg::Albedo) => {
@@ -415,6 +473,9 @@ fn run(cli: Cli) -> Result<()> {
                 },
             );
             let (img, stats) = (&rendered.image, &rendered.stats);
+            if let (Some(path), Some(log)) = (&ray_log, scene_data.ray_log.take()) {
+                write_ray_log(path, &scene_data, log, stats)?;
+            }
             if stats.interrupted {
                 if stats.spp == 0 {
                     bail!("interrupted before the first pass completed: nothing written");

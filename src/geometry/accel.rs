@@ -158,7 +158,7 @@ const NODE_TMIN: f32 = 1e-4;
 /// node test's clamp even after rounding `o − back·d` to f32, so every box the true
 /// ray meets at t ≥ 0 is visited. Primitives are still intersected with the true ray,
 /// and their distances reported to the traversal as `t + back`.
-#[inline]
+#[inline(always)]
 fn traversal_ray(o: Vec3A, d: Vec3A, tmax: f32) -> (BvhRay, f32) {
     let back = 2.0 * NODE_TMIN + o.abs().max_element() * 1e-6;
     (BvhRay::new(o - d * back, d, 0.0, tmax + back), back)
@@ -478,11 +478,22 @@ impl Accel {
         d: Vec3A,
         tmax: f32,
     ) -> Option<(f32, f32, f32)> {
-        if self.mixed {
-            self.prim_intersect(shapes, i, o, d, tmax)
-        } else {
-            self.triangles[i].intersect(o, d, tmax)
+        if !self.mixed {
+            return self.triangles[i].intersect(o, d, tmax);
         }
+        // A BVH that holds analytic shapes (more than SEPARATE_ANALYTIC, rare) tests
+        // them out of line: inlined, they made every BVH's leaf test too large to be
+        // inlined into its traversal (a call per triangle, 1-3% on the meshes).
+        #[inline(never)]
+        fn mixed(
+            accel: &Accel,
+            shapes: &[Geometry],
+            i: usize,
+            ray: (Vec3A, Vec3A, f32),
+        ) -> Option<(f32, f32, f32)> {
+            accel.prim_intersect(shapes, i, ray.0, ray.1, ray.2)
+        }
+        mixed(self, shapes, i, (o, d, tmax))
     }
 
     /// The hit of the ray with analytic shape `shape`, if closer than `tmax`.
@@ -515,7 +526,7 @@ impl Accel {
     }
 
     /// Closest hit along `o + t d`, 0 < t < tmax.
-    #[inline]
+    #[inline(always)]
     pub fn intersect(&self, shapes: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_best = tmax;

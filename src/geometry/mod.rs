@@ -25,6 +25,7 @@ pub struct Ray {
 }
 
 impl Ray {
+    #[inline]
     pub fn new(o: Vec3A, d: Vec3A, tmax: f32) -> Self {
         Ray { o, d, tmax }
     }
@@ -57,6 +58,7 @@ pub struct Frame {
 }
 
 impl Frame {
+    #[inline]
     pub fn new(n: Vec3A) -> Self {
         let sign = 1.0f32.copysign(n.z);
         let a = -1.0 / (sign + n.z);
@@ -79,10 +81,12 @@ impl Frame {
         }
     }
 
+    #[inline]
     pub fn to_local(&self, v: Vec3A) -> Vec3A {
         Vec3A::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
     }
 
+    #[inline]
     pub fn to_world(&self, v: Vec3A) -> Vec3A {
         self.s * v.x + self.t * v.y + self.n * v.z
     }

@@ -93,15 +93,11 @@ fn medium_beyond(info: &ShapeInfo, along_normal: bool, current: Option<u32>) -> 
 /// surface blocks the way.
 ///
 /// Where the accelerator can, it finds every crossing in one traversal
-/// ([`Accel::crossings`](crate::geometry::accel::Accel::crossings)); else one ray is
+/// ([`Scene::crossings`]); else one ray is
 /// cast per crossing, as Mitsuba does.
 fn shadow_transmittance(scene: &Scene, o: Vec3A, d: Vec3A, dist: f32, medium: Option<u32>) -> Vec3 {
     let mut hits = CrossingList::new();
-    let g = &scene.geometries;
-    match scene
-        .accel
-        .crossings(g, &scene.shadow_pass, o, d, dist, &mut hits)
-    {
+    match scene.crossings(o, d, dist, &mut hits) {
         Crossings::Blocked => Vec3::ZERO,
         Crossings::Found => through_crossings(scene, dist, medium, &mut hits),
         Crossings::Unsupported => shadow_transmittance_stepwise(scene, o, d, dist, medium),

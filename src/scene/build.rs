@@ -245,6 +245,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         spp: overrides.spp.unwrap_or(spp),
         seed: overrides.seed.unwrap_or(seed),
         integrator,
+        ray_log: None,
     })
 }
 

@@ -1,0 +1,318 @@
+//! A record of the rays a render casts into the scene (`mediareg render --ray-log
+//! FILE`), for `scripts/cast_bound`: it times Mitsuba 3's own ray caster (Embree) on
+//! exactly these rays, which bounds from below what any renderer that casts them one
+//! by one at Embree's speed can reach.
+//!
+//! Logged are the casts that search the scene's shapes: closest hits
+//! ([`Scene::intersect`], every surface segment and free flight cast against the scene),
+//! shadow searches ([`Scene::crossings`]) and occlusion tests ([`Scene::occluded`]).
+//! A convex medium's flights, tested against its one shape (`geometry::convex`), are
+//! not casts into the scene and are not logged, so the bound stays a lower one.
+//!
+//! The file is 8 little-endian f32 per ray: kind (0 closest hit, 1 shadow search, 2
+//! occlusion), origin x y z, direction x y z, tmax (∞ for none).
+
+use std::path::Path;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use glam::Vec3A;
+
+use super::Scene;
+use crate::geometry::accel::CrossingList;
+
+/// What a logged cast asks of the scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cast {
+    ClosestHit = 0,
+    Crossings = 1,
+    Occluded = 2,
+}
+
+impl Cast {
+    pub const ALL: [Cast; 3] = [Cast::ClosestHit, Cast::Crossings, Cast::Occluded];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Cast::ClosestHit => "closest hit",
+            Cast::Crossings => "shadow search",
+            Cast::Occluded => "occlusion",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoggedRay {
+    pub kind: Cast,
+    pub o: Vec3A,
+    pub d: Vec3A,
+    pub tmax: f32,
+}
+
+/// The rays cast while it is attached to a scene (`Scene::ray_log`).
+#[derive(Default)]
+pub struct RayLog {
+    rays: Mutex<Vec<LoggedRay>>,
+}
+
+impl RayLog {
+    /// Out of line: the casts' own code stays as it is without a log.
+    #[cold]
+    #[inline(never)]
+    pub fn record(&self, kind: Cast, o: Vec3A, d: Vec3A, tmax: f32) {
+        let ray = LoggedRay { kind, o, d, tmax };
+        // A poisoned lock only means another render thread panicked; the rays are fine.
+        self.rays
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(ray);
+    }
+
+    pub fn into_rays(self) -> Vec<LoggedRay> {
+        self.rays.into_inner().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+pub fn write(path: &Path, rays: &[LoggedRay]) -> std::io::Result<()> {
+    let mut bytes = Vec::with_capacity(rays.len() * 32);
+    for r in rays {
+        let v = [
+            r.kind as u8 as f32,
+            r.o.x,
+            r.o.y,
+            r.o.z,
+            r.d.x,
+            r.d.y,
+            r.d.z,
+            r.tmax,
+        ];
+        for x in v {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    std::fs::write(path, bytes)
+}
+
+pub fn read(path: &Path) -> Result<Vec<LoggedRay>, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if bytes.len() % 32 != 0 {
+        return Err(format!(
+            "{}: {} bytes is not a whole number of 32-byte rays",
+            path.display(),
+            bytes.len()
+        ));
+    }
+    bytes
+        .chunks_exact(32)
+        .map(|c| {
+            let f =
+                |i: usize| f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]);
+            let kind = match f(0) as u32 {
+                0 => Cast::ClosestHit,
+                1 => Cast::Crossings,
+                2 => Cast::Occluded,
+                k => return Err(format!("{}: unknown cast kind {k}", path.display())),
+            };
+            Ok(LoggedRay {
+                kind,
+                o: Vec3A::new(f(1), f(2), f(3)),
+                d: Vec3A::new(f(4), f(5), f(6)),
+                tmax: f(7),
+            })
+        })
+        .collect()
+}
+
+/// How long one cast of a kind takes here, cast again one by one on this thread.
+#[derive(Clone, Copy, Debug)]
+pub struct CastTiming {
+    pub kind: Cast,
+    pub count: usize,
+    /// The best of `repeats` passes over them, per ray.
+    pub ns_per_ray: f64,
+}
+
+/// Casts `rays` again (each kind by itself, `repeats` times, the fastest pass kept), as
+/// the render did but without shading: a closest hit's surface is not looked up.
+pub fn time_casts(scene: &Scene, rays: &[LoggedRay], repeats: usize) -> Vec<CastTiming> {
+    let g = &scene.geometries;
+    let mut out = Vec::new();
+    for kind in Cast::ALL {
+        let of_kind: Vec<&LoggedRay> = rays.iter().filter(|r| r.kind == kind).collect();
+        if of_kind.is_empty() {
+            continue;
+        }
+        let mut best = f64::INFINITY;
+        let mut crossings = CrossingList::new();
+        for _ in 0..repeats.max(1) {
+            let start = Instant::now();
+            let mut answers = 0usize;
+            for r in &of_kind {
+                let found = match kind {
+                    Cast::ClosestHit => scene.accel.intersect(g, r.o, r.d, r.tmax).is_some(),
+                    Cast::Crossings => {
+                        let _ = scene.accel.crossings(
+                            g,
+                            &scene.shadow_pass,
+                            r.o,
+                            r.d,
+                            r.tmax,
+                            &mut crossings,
+                        );
+                        !crossings.is_empty()
+                    }
+                    Cast::Occluded => scene.accel.occluded(g, r.o, r.d, r.tmax),
+                };
+                answers += found as usize;
+            }
+            // The answers are used, so the casts are not optimised away.
+            std::hint::black_box(answers);
+            best = best.min(start.elapsed().as_secs_f64());
+        }
+        out.push(CastTiming {
+            kind,
+            count: of_kind.len(),
+            ns_per_ray: best / of_kind.len() as f64 * 1e9,
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BuildOverrides;
+
+    fn temp(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("mediareg_ray_log_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    /// Two spheres in a row, a medium inside the first, and a wall of 18 triangles
+    /// behind them (more than the brute-force limit, so casts traverse the BVH).
+    fn scene(with_log: bool) -> Scene {
+        let xml = r#"<scene version="3.0.0">
+            <integrator type="volpath"/>
+            <sensor type="perspective"><float name="fov" value="40"/>
+                <transform name="to_world"><lookat origin="0,0,5" target="0,0,0" up="0,1,0"/></transform>
+                <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
+                <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+            </sensor>
+            <shape type="sphere"><float name="radius" value="0.5"/><bsdf type="null"/>
+                <medium type="homogeneous" name="interior"><float name="sigma_t" value="2"/></medium>
+            </shape>
+            <shape type="sphere"><point name="center" x="0" y="0" z="-1.5"/><float name="radius" value="0.5"/></shape>
+            <shape type="obj"><string name="filename" value="wall.obj"/></shape>
+            <emitter type="point"><point name="position" x="0" y="2" z="2"/></emitter>
+        </scene>"#;
+        // A 3 × 3 grid of squares at z = −3.
+        let mut obj = String::new();
+        for j in 0..4 {
+            for i in 0..4 {
+                obj += &format!("v {} {} -3\n", i as f32 - 1.5, j as f32 - 1.5);
+            }
+        }
+        for j in 0..3 {
+            for i in 0..3 {
+                let v = 1 + i + 4 * j;
+                obj += &format!("f {} {} {}\nf {} {} {}\n", v, v + 1, v + 5, v, v + 5, v + 4);
+            }
+        }
+        std::fs::write(temp("wall.obj"), obj).unwrap();
+        let path = temp("scene.xml");
+        std::fs::write(&path, xml).unwrap();
+        let mut scene =
+            crate::load_scene(&path, &Default::default(), &BuildOverrides::default()).unwrap();
+        if with_log {
+            scene.ray_log = Some(RayLog::default());
+        }
+        scene
+    }
+
+    #[test]
+    fn rays_written_are_read_back_the_same() {
+        let rays = [
+            LoggedRay {
+                kind: Cast::ClosestHit,
+                o: Vec3A::new(1.0, -2.0, 3.5),
+                d: Vec3A::new(0.0, 0.6, -0.8),
+                tmax: f32::INFINITY,
+            },
+            LoggedRay {
+                kind: Cast::Crossings,
+                o: Vec3A::new(-0.25, 0.0, 1e-7),
+                d: Vec3A::X,
+                tmax: 4.5,
+            },
+            LoggedRay {
+                kind: Cast::Occluded,
+                o: Vec3A::ZERO,
+                d: Vec3A::NEG_Z,
+                tmax: 1e30,
+            },
+        ];
+        let path = temp("rays.bin");
+        write(&path, &rays).unwrap();
+        assert_eq!(std::fs::metadata(&path).unwrap().len(), 3 * 32);
+        assert_eq!(read(&path).unwrap(), rays);
+    }
+
+    #[test]
+    fn a_file_that_is_no_ray_log_is_refused_by_name() {
+        let path = temp("short.bin");
+        std::fs::write(&path, [0u8; 40]).unwrap();
+        let e = read(&path).unwrap_err();
+        assert!(e.contains("short.bin") && e.contains("32-byte"), "{e}");
+        let path = temp("kind.bin");
+        let mut bytes = vec![0u8; 32];
+        bytes[..4].copy_from_slice(&7.0f32.to_le_bytes());
+        std::fs::write(&path, bytes).unwrap();
+        let e = read(&path).unwrap_err();
+        assert!(e.contains("kind.bin") && e.contains("kind 7"), "{e}");
+    }
+
+    #[test]
+    fn casting_again_times_each_kind_present() {
+        let scene = scene(false);
+        assert!(scene.accel.traverses_bvh());
+        let ray = |kind, z: f32| LoggedRay {
+            kind,
+            o: Vec3A::new(0.0, 0.0, z),
+            d: Vec3A::NEG_Z,
+            tmax: f32::INFINITY,
+        };
+        let rays = [
+            ray(Cast::ClosestHit, 5.0),
+            ray(Cast::ClosestHit, 0.0),
+            ray(Cast::Crossings, 0.0),
+        ];
+        let timings = time_casts(&scene, &rays, 2);
+        let kinds: Vec<(Cast, usize)> = timings.iter().map(|t| (t.kind, t.count)).collect();
+        assert_eq!(kinds, [(Cast::ClosestHit, 2), (Cast::Crossings, 1)]);
+        assert!(timings
+            .iter()
+            .all(|t| t.ns_per_ray.is_finite() && t.ns_per_ray > 0.0));
+    }
+
+    /// With the `ray-log` feature, a render records its casts: a closest hit for every
+    /// camera ray at least, and shadow searches from the medium and the surfaces.
+    #[cfg(feature = "ray-log")]
+    #[test]
+    fn a_render_records_its_casts() {
+        let scene = scene(true);
+        let rendered = crate::integrator::render_with(&scene, &Default::default());
+        let samples = rendered.stats.samples as usize;
+        let rays = scene.ray_log.unwrap().into_rays();
+        let count = |k| rays.iter().filter(|r| r.kind == k).count();
+        assert!(
+            count(Cast::ClosestHit) >= samples,
+            "{} < {samples}",
+            count(Cast::ClosestHit)
+        );
+        assert!(count(Cast::Crossings) > 0);
+        assert!(rays
+            .iter()
+            .all(|r| r.o.is_finite() && r.d.is_normalized() && r.tmax > 0.0));
+    }
+}
