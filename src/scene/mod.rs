@@ -159,10 +159,7 @@ impl Scene {
     // and moved the traversal out, 1-4% slower (camera_in_medium, cube, Lucy).
     #[inline(never)]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<SurfaceInteraction> {
-        #[cfg(feature = "ray-log")]
-        if let Some(log) = &self.ray_log {
-            log.record(ray_log::Cast::ClosestHit, o, d, tmax);
-        }
+        self.log_cast(ray_log::Cast::ClosestHit, o, d, tmax);
         let hit = self.accel.intersect(&self.geometries, o, d, tmax)?;
         Some(self.interaction(o, d, &hit))
     }
@@ -188,21 +185,27 @@ impl Scene {
 
     #[inline]
     pub fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32) -> bool {
+        self.log_cast(ray_log::Cast::Occluded, o, d, tmax);
+        self.accel.occluded(&self.geometries, o, d, tmax)
+    }
+
+    /// Records a cast in the ray log, when there is one; nothing at all in a build
+    /// without the `ray-log` feature.
+    #[inline(always)]
+    fn log_cast(&self, kind: ray_log::Cast, o: Vec3A, d: Vec3A, tmax: f32) {
         #[cfg(feature = "ray-log")]
         if let Some(log) = &self.ray_log {
-            log.record(ray_log::Cast::Occluded, o, d, tmax);
+            log.record(kind, o, d, tmax);
         }
-        self.accel.occluded(&self.geometries, o, d, tmax)
+        #[cfg(not(feature = "ray-log"))]
+        let _ = (kind, o, d, tmax);
     }
 
     /// Every surface a shadow ray crosses before `tmax` ([`Accel::crossings`], with how
     /// each shape treats shadow rays).
     #[inline]
     pub fn crossings(&self, o: Vec3A, d: Vec3A, tmax: f32, out: &mut CrossingList) -> Crossings {
-        #[cfg(feature = "ray-log")]
-        if let Some(log) = &self.ray_log {
-            log.record(ray_log::Cast::Crossings, o, d, tmax);
-        }
+        self.log_cast(ray_log::Cast::Crossings, o, d, tmax);
         self.accel
             .crossings(&self.geometries, &self.shadow_pass, o, d, tmax, out)
     }

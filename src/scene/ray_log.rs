@@ -93,36 +93,6 @@ pub fn write(path: &Path, rays: &[LoggedRay]) -> std::io::Result<()> {
     std::fs::write(path, bytes)
 }
 
-pub fn read(path: &Path) -> Result<Vec<LoggedRay>, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    if bytes.len() % 32 != 0 {
-        return Err(format!(
-            "{}: {} bytes is not a whole number of 32-byte rays",
-            path.display(),
-            bytes.len()
-        ));
-    }
-    bytes
-        .chunks_exact(32)
-        .map(|c| {
-            let f =
-                |i: usize| f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]);
-            let kind = match f(0) as u32 {
-                0 => Cast::ClosestHit,
-                1 => Cast::Crossings,
-                2 => Cast::Occluded,
-                k => return Err(format!("{}: unknown cast kind {k}", path.display())),
-            };
-            Ok(LoggedRay {
-                kind,
-                o: Vec3A::new(f(1), f(2), f(3)),
-                d: Vec3A::new(f(4), f(5), f(6)),
-                tmax: f(7),
-            })
-        })
-        .collect()
-}
-
 /// How long one cast of a kind takes here, cast again one by one on this thread.
 #[derive(Clone, Copy, Debug)]
 pub struct CastTiming {
@@ -133,7 +103,8 @@ pub struct CastTiming {
 }
 
 /// Casts `rays` again (each kind by itself, `repeats` times, the fastest pass kept), as
-/// the render did but without shading: a closest hit's surface is not looked up.
+/// the render did but without shading: a closest hit's surface is not looked up. The
+/// scene's own log must be off (taken), or these casts would be logged too.
 pub fn time_casts(scene: &Scene, rays: &[LoggedRay], repeats: usize) -> Vec<CastTiming> {
     let g = &scene.geometries;
     let mut out = Vec::new();
@@ -151,17 +122,10 @@ pub fn time_casts(scene: &Scene, rays: &[LoggedRay], repeats: usize) -> Vec<Cast
                 let found = match kind {
                     Cast::ClosestHit => scene.accel.intersect(g, r.o, r.d, r.tmax).is_some(),
                     Cast::Crossings => {
-                        let _ = scene.accel.crossings(
-                            g,
-                            &scene.shadow_pass,
-                            r.o,
-                            r.d,
-                            r.tmax,
-                            &mut crossings,
-                        );
+                        let _ = scene.crossings(r.o, r.d, r.tmax, &mut crossings);
                         !crossings.is_empty()
                     }
-                    Cast::Occluded => scene.accel.occluded(g, r.o, r.d, r.tmax),
+                    Cast::Occluded => scene.occluded(r.o, r.d, r.tmax),
                 };
                 answers += found as usize;
             }
@@ -182,6 +146,38 @@ pub fn time_casts(scene: &Scene, rays: &[LoggedRay], repeats: usize) -> Vec<Cast
 mod tests {
     use super::*;
     use crate::BuildOverrides;
+
+    /// The file back as rays (the format `scripts/cast_bound` reads).
+    fn read(path: &Path) -> Result<Vec<LoggedRay>, String> {
+        let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        if bytes.len() % 32 != 0 {
+            return Err(format!(
+                "{}: {} bytes is not a whole number of 32-byte rays",
+                path.display(),
+                bytes.len()
+            ));
+        }
+        bytes
+            .chunks_exact(32)
+            .map(|c| {
+                let f = |i: usize| {
+                    f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]])
+                };
+                let kind = match f(0) as u32 {
+                    0 => Cast::ClosestHit,
+                    1 => Cast::Crossings,
+                    2 => Cast::Occluded,
+                    k => return Err(format!("{}: unknown cast kind {k}", path.display())),
+                };
+                Ok(LoggedRay {
+                    kind,
+                    o: Vec3A::new(f(1), f(2), f(3)),
+                    d: Vec3A::new(f(4), f(5), f(6)),
+                    tmax: f(7),
+                })
+            })
+            .collect()
+    }
 
     fn temp(name: &str) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("mediareg_ray_log_{}", std::process::id()));
