@@ -1,13 +1,13 @@
 //! A record of the rays a render casts into the scene (`mediareg render --ray-log
 //! FILE`), for `scripts/cast_bound`: it times Mitsuba 3's own ray caster (Embree) on
-//! exactly these rays, which bounds from below what any renderer that casts them one
-//! by one at Embree's speed can reach.
+//! exactly these rays, a lower bound on the time a sample takes in any renderer that
+//! casts them one by one at Embree's speed (so an upper bound on its samples/s).
 //!
 //! Logged are the casts that search the scene's shapes: closest hits
 //! ([`Scene::intersect`], every surface segment and free flight cast against the scene),
 //! shadow searches ([`Scene::crossings`]) and occlusion tests ([`Scene::occluded`]).
 //! A convex medium's flights, tested against its one shape (`geometry::convex`), are
-//! not casts into the scene and are not logged, so the bound stays a lower one.
+//! not casts into the scene and are not logged, so the time stays a lower bound.
 //!
 //! The file is 8 little-endian f32 per ray: kind (0 closest hit, 1 shadow search, 2
 //! occlusion), origin x y z, direction x y z, tmax (∞ for none).
