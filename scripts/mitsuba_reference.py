@@ -5,13 +5,18 @@ Writes, into --out (default: reference/):
   NAME.exr        the mean of all chunks (linear RGB, float32)
   NAME_var.exr    per pixel and channel, the variance of that mean
                   (sample variance of the chunk images / number of chunks)
-  NAME_half0.exr, NAME_half1.exr   the means of the two independent halves of the chunks
   NAME.json       provenance: Mitsuba version, variant, spp, chunks, seeds, seconds,
                   parameters, and the sha256 of the scene file, its includes and every
                   asset it names, so a test can tell when a reference has gone stale.
 
 Each chunk renders spp/chunks samples per pixel with its own seed; chunks are
 independent, so their spread estimates the variance of the mean.
+
+With --extend, an existing reference NAME is made longer instead: --chunks more chunks of
+its own spp per chunk, with the seeds after its last, are pooled with it (the pooled
+mean and variance of all chunks, from the stored mean and variance: Chan et al.'s
+parallel update of the sum of squared deviations). The merged files are written after
+every chunk, so an interrupted run keeps what it rendered (run it again to go on).
 
 With --crop X,Y,W,H only that window of the film is rendered (the JSON records it, and
 the tests render the same window).
@@ -27,6 +32,7 @@ default: the scene's stem + "_d" + NAME.
 Usage:
   scripts/mitsuba_reference.py mitsuba_scenes/cbox.xml --spp 4096 --chunks 8 \
       [-a ../shared/meshes] [-D name=value]... [--variant llvm_ad_rgb]
+  scripts/mitsuba_reference.py mitsuba_scenes/lucy.xml --extend --chunks 16 -a .cache/meshes
 """
 import argparse
 import datetime
@@ -126,11 +132,13 @@ def main():
     ap.add_argument("--name", default=None, help="output name (default: the scene's stem)")
     ap.add_argument("--derivative", default=None, help="differentiate with respect to this -D parameter")
     ap.add_argument("--step", type=float, default=0.01, help="finite-difference step H for --derivative")
+    ap.add_argument("--extend", action="store_true",
+                    help="add --chunks chunks to the existing reference NAME (its spp per chunk, later seeds)")
     ap.add_argument("--crop", default=None, metavar="X,Y,W,H",
                     help="render only this window of the film (as mediareg render --crop)")
     args = ap.parse_args()
-    if args.chunks < 2 or args.chunks % 2 or args.spp % args.chunks:
-        sys.exit("--chunks must be even and >= 2, and divide --spp")
+    if not args.extend and (args.chunks < 2 or args.spp % args.chunks):
+        sys.exit("--chunks must be >= 2 and divide --spp")
 
     import mitsuba as mi
     import numpy as np
@@ -166,61 +174,86 @@ def main():
             p["film.crop_size"] = mi.ScalarVector2u(crop[2], crop[3])
             p.update()
 
-    spp_chunk = args.spp // args.chunks
-    chunks = []
-    t0 = time.time()
-    for i in range(args.chunks):
-        img = sum(w * np.array(mi.render(sc, spp=spp_chunk, seed=args.seed + i), dtype=np.float64)[:, :, :3]
-                  for w, sc in scenes)
-        chunks.append(img)
-        print(f"chunk {i + 1}/{args.chunks} done ({time.time() - t0:.1f} s)", flush=True)
-    seconds = time.time() - t0
-    stack = np.stack(chunks)
-    mean = stack.mean(axis=0)
-    var_mean = stack.var(axis=0, ddof=1) / args.chunks
-    half = args.chunks // 2
-
     name = args.name or os.path.splitext(os.path.basename(args.scene))[0]
     if args.derivative and not args.name:
         name += "_d" + args.derivative
     os.makedirs(args.out, exist_ok=True)
+    out = os.path.join(args.out, name)
+    hashes = {k: sha256(v) for k, v in sorted(files.items())}
+
+    # Running pooled moments of the chunk images: n chunks, their mean, and m2, the sum of
+    # squared deviations from it (variance of one chunk = m2 / (n - 1)).
+    n, mean, m2, seeds, seconds_before = 0, None, None, [], 0.0
+    spp_chunk = args.spp // args.chunks
+    first_seed = args.seed
+    if args.extend:
+        with open(out + ".json") as f:
+            old = json.load(f)
+        if old["sha256"] != hashes or old["params"] != params or old.get("crop") != crop:
+            sys.exit(f"--extend: {out}.json was made from other files, parameters or crop; "
+                     "render it anew instead")
+        if old["variant"] != variant or old["mitsuba_version"] != mi.__version__:
+            sys.exit(f"--extend: {out}.json was made by Mitsuba {old['mitsuba_version']} "
+                     f"{old['variant']}; extend it with the same (--variant)")
+        n, spp_chunk, seeds = old["chunks"], old["spp_per_chunk"], list(old["seeds"])
+        seconds_before = old["seconds"]
+        mean = np.array(mi.Bitmap(out + ".exr"), dtype=np.float64)[:, :, :3]
+        var_mean = np.array(mi.Bitmap(out + "_var.exr"), dtype=np.float64)[:, :, :3]
+        m2 = var_mean * n * (n - 1)
+        first_seed = max(seeds) + 1
 
     def write(suffix, arr):
         mi.Bitmap(arr.astype(np.float32), pixel_format=mi.Bitmap.PixelFormat.RGB).write(
-            os.path.join(args.out, f"{name}{suffix}.exr"))
+            f"{out}{suffix}.exr.tmp.exr")
+        os.replace(f"{out}{suffix}.exr.tmp.exr", f"{out}{suffix}.exr")
 
-    write("", mean)
-    write("_var", var_mean)
-    write("_half0", stack[:half].mean(axis=0))
-    write("_half1", stack[half:].mean(axis=0))
-
-    meta = {
-        "scene": os.path.relpath(os.path.abspath(args.scene)),
-        "mitsuba_version": mi.__version__,
-        "variant": variant,
-        "spp": args.spp,
-        "chunks": args.chunks,
-        "spp_per_chunk": spp_chunk,
-        "seeds": [args.seed + i for i in range(args.chunks)],
-        "seconds": round(seconds, 3),
-        "samples_per_second": round(mean.shape[0] * mean.shape[1] * args.spp / seconds, 1),
-        "params": params,
-        "search": args.search,
-        "width": mean.shape[1],
-        "height": mean.shape[0],
-        **({"crop": crop} if crop else {}),
-        "sha256": {k: sha256(v) for k, v in sorted(files.items())},
-        "made_by": "scripts/mitsuba_reference.py",
-        **({"derivative": {"param": args.derivative, "step": args.step,
-                           "scheme": "Richardson central differences, common random numbers"}}
-           if args.derivative else {}),
-        "date": datetime.date.today().isoformat(),
-    }
-    with open(os.path.join(args.out, f"{name}.json"), "w") as f:
-        json.dump(meta, f, indent=2)
-        f.write("\n")
-    print(f"wrote {args.out}/{name}.exr (+ _var, _half0, _half1, .json) in {seconds:.1f} s with {variant}")
-
+    t0 = time.time()
+    for i in range(args.chunks):
+        seed = first_seed + i
+        img = sum(w * np.array(mi.render(sc, spp=spp_chunk, seed=seed), dtype=np.float64)[:, :, :3]
+                  for w, sc in scenes)
+        # Welford's update: exact pooling, one chunk at a time.
+        n += 1
+        if mean is None:
+            mean, m2 = img.copy(), np.zeros_like(img)
+        else:
+            delta = img - mean
+            mean += delta / n
+            m2 += delta * (img - mean)
+        seeds.append(seed)
+        print(f"chunk {i + 1}/{args.chunks} done ({time.time() - t0:.1f} s)", flush=True)
+        if n < 2:
+            continue
+        seconds = seconds_before + time.time() - t0
+        write("", mean)
+        write("_var", m2 / (n - 1) / n)
+        meta = {
+            "scene": os.path.relpath(os.path.abspath(args.scene)),
+            "mitsuba_version": mi.__version__,
+            "variant": variant,
+            "spp": n * spp_chunk,
+            "chunks": n,
+            "spp_per_chunk": spp_chunk,
+            "seeds": seeds,
+            "seconds": round(seconds, 3),
+            "samples_per_second": round(mean.shape[0] * mean.shape[1] * n * spp_chunk / seconds, 1),
+            "params": params,
+            "search": args.search,
+            "width": mean.shape[1],
+            "height": mean.shape[0],
+            **({"crop": crop} if crop else {}),
+            "sha256": hashes,
+            "made_by": "scripts/mitsuba_reference.py",
+            **({"derivative": {"param": args.derivative, "step": args.step,
+                               "scheme": "Richardson central differences, common random numbers"}}
+               if args.derivative else {}),
+            "date": datetime.date.today().isoformat(),
+        }
+        with open(out + ".json.tmp", "w") as f:
+            json.dump(meta, f, indent=2)
+            f.write("\n")
+        os.replace(out + ".json.tmp", out + ".json")
+    print(f"wrote {out}.exr (+ _var, .json): {n} chunks, {n * spp_chunk} spp, with {variant}")
 
 if __name__ == "__main__":
     main()

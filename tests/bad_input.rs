@@ -7,10 +7,16 @@ use std::process::Command;
 
 fn run_bad(file: &str, extra: &[&str]) -> (i32, String) {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/bad_input");
+    run_bad_path(&dir.join(file), extra)
+}
+
+/// `run_bad` for a scene file anywhere (one a test generates).
+fn run_bad_path(scene: &std::path::Path, extra: &[&str]) -> (i32, String) {
+    let file = scene.file_name().unwrap().to_string_lossy();
     let out = std::env::temp_dir().join(format!("mediareg_bad_{}_{file}.exr", std::process::id()));
     let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
         .arg("render")
-        .arg(dir.join(file))
+        .arg(scene)
         .arg("-o")
         .arg(&out)
         .args(extra)
@@ -183,6 +189,59 @@ fn cyclic_include() {
     ] {
         assert!(stderr.contains(n), "no {n:?} in:\n{stderr}");
     }
+}
+
+/// A generated file of 200,000 nested shapes (5.8 MB; Mitsuba 3 itself overflows its
+/// stack on it) is refused where the nesting passes the bound, not with a crash.
+#[test]
+fn deeply_nested_elements() {
+    let dir = tempdir("deep");
+    let scene = dir.join("deep.xml");
+    let depth = 200_000;
+    let mut text = String::from("<scene version=\"3.0.0\">\n");
+    text.push_str(&"<shape type=\"sphere\">\n".repeat(depth));
+    text.push_str(&"</shape>\n".repeat(depth));
+    text.push_str("</scene>\n");
+    std::fs::write(&scene, text).unwrap();
+    let (code, stderr) = run_bad_path(&scene, &[]);
+    assert_eq!(code, 1, "{stderr}");
+    // The root is line 1; the 64th nested shape opens on line 65.
+    let limit = mediareg::xml::element::MAX_DEPTH;
+    for n in [
+        format!("deep.xml:{}:", limit + 1),
+        "nested more than".into(),
+    ] {
+        assert!(stderr.contains(&n), "no {n:?} in:\n{stderr}");
+    }
+}
+
+/// A chain of includes, each file including the next, is bounded like nesting.
+#[test]
+fn long_include_chain() {
+    let dir = tempdir("chain");
+    let n = 40;
+    for i in 0..n {
+        let body = if i + 1 < n {
+            format!("<include filename=\"chain{}.xml\"/>", i + 1)
+        } else {
+            String::new()
+        };
+        std::fs::write(
+            dir.join(format!("chain{i}.xml")),
+            format!("<scene version=\"3.0.0\">\n{body}\n</scene>\n"),
+        )
+        .unwrap();
+    }
+    let (code, stderr) = run_bad_path(&dir.join("chain0.xml"), &[]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("includes are nested more than"), "{stderr}");
+    assert!(stderr.contains(".xml:2:"), "no file:line in:\n{stderr}");
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("mediareg_bad_{}_{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
 }
 
 #[test]

@@ -256,12 +256,14 @@ fn corpus() -> Option<PathBuf> {
 #[test]
 fn every_corpus_scene_renders_or_is_refused_clearly() {
     let Some(dir) = corpus() else {
-        // CI always has ../shared beside the project; a bare checkout may not.
+        // The tests run beside ../shared (README); a missing corpus is a broken set-up,
+        // skipped only when asked for by name, never silently.
         assert!(
-            std::env::var("CI").is_err(),
-            "../shared/corpus is missing on CI"
+            std::env::var_os("MEDIAREG_NO_CORPUS").is_some(),
+            "../shared/corpus is missing (expected beside the project); \
+             set MEDIAREG_NO_CORPUS=1 to skip the corpus tests on purpose"
         );
-        eprintln!("skipped: ../shared/corpus not found");
+        eprintln!("skipped: ../shared/corpus not found and MEDIAREG_NO_CORPUS is set");
         return;
     };
     let index: Vec<serde_json::Value> =

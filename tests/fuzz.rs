@@ -4,7 +4,10 @@
 //! numbers, and truncating. Each mutant is loaded and built, and rendered when it is
 //! small; the property is that nothing panics and every render is finite and ≥ 0.
 //!
-//! CI runs `MEDIAREG_FUZZ_CASES` cases per target (default 2000); more on demand:
+//! A refused mutant must be refused with a message that names the file and the line.
+//!
+//! CI runs `MEDIAREG_FUZZ_CASES` cases per target (default 2000) from a fixed seed
+//! (`MEDIAREG_FUZZ_SEED`, printed with any failure); more on demand:
 //! `MEDIAREG_FUZZ_CASES=20000 cargo test --release --test fuzz`.
 
 mod common;
@@ -16,7 +19,7 @@ use mediareg::geometry::mesh::{read_obj, read_ply};
 use mediareg::scene::build_scene;
 use mediareg::BuildOverrides;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, TestRunner};
+use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
 
 use common::scene_text::{tmp_dir, write};
 
@@ -137,13 +140,35 @@ fn cases() -> u32 {
         .unwrap_or(2000)
 }
 
+/// The fuzzing seed: `MEDIAREG_FUZZ_SEED` (a number), else a fixed one, so a CI failure
+/// replays with the same mutants. Failures print it.
+fn seed() -> u64 {
+    std::env::var("MEDIAREG_FUZZ_SEED")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(20261125)
+}
+
 fn runner() -> TestRunner {
-    TestRunner::new(Config {
+    let mut key = [0u8; 32];
+    key[..8].copy_from_slice(&seed().to_le_bytes());
+    let config = Config {
         cases: cases(),
-        // Fixed seed: a CI failure reproduces.
-        rng_algorithm: proptest::test_runner::RngAlgorithm::ChaCha,
         failure_persistence: None,
         ..Config::default()
+    };
+    TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &key))
+}
+
+/// Runs `test` on the cases of `strategy` with the fixed seed; a failure names the seed
+/// and the case count to replay it with.
+fn run<S: Strategy>(strategy: &S, test: impl Fn(S::Value) -> Result<(), TestCaseError>) {
+    runner().run(strategy, test).unwrap_or_else(|e| {
+        panic!(
+            "{e}\nreplay: MEDIAREG_FUZZ_SEED={} MEDIAREG_FUZZ_CASES={} cargo test --release --test fuzz",
+            seed(),
+            cases()
+        )
     })
 }
 
@@ -188,28 +213,51 @@ static REACHED: [AtomicUsize; 3] = [
     AtomicUsize::new(0),
 ];
 
-/// Loads, builds and (when small) renders a scene file; panics are the failures.
-fn exercise_scene(path: &Path) {
-    let Ok(desc) = mediareg::xml::load_file(path, &common::options_in(&[], vec![])) else {
-        return;
+/// A refusal must say where: a file and a line in it. The one exception is a file-wide
+/// error about another file (a mesh or an image), which has no line to name.
+fn names_file_and_line(e: &mediareg::error::SceneError, scene: &Path) -> bool {
+    e.loc
+        .as_ref()
+        .is_some_and(|l| l.line > 0 || l.file.as_path() != scene)
+}
+
+/// Loads, builds and (when small) renders a scene file; panics and refusals that do not
+/// say where are the failures.
+fn exercise_scene(path: &Path) -> Result<(), TestCaseError> {
+    let desc = match mediareg::xml::load_file(path, &common::options_in(&[], vec![])) {
+        Ok(d) => d,
+        Err(e) => {
+            prop_assert!(
+                names_file_and_line(&e, path),
+                "refused without file:line: {e}"
+            );
+            return Ok(());
+        }
     };
     REACHED[0].fetch_add(1, Ordering::Relaxed);
-    let Ok(scene) = build_scene(
+    let scene = match build_scene(
         &desc,
         &BuildOverrides {
             spp: Some(1),
             seed: Some(1),
             crop: None,
         },
-    ) else {
-        return;
+    ) {
+        Ok(s) => s,
+        Err(e) => {
+            prop_assert!(
+                names_file_and_line(&e, path),
+                "refused without file:line: {e}"
+            );
+            return Ok(());
+        }
     };
     REACHED[1].fetch_add(1, Ordering::Relaxed);
     let (w, h) = scene.film.crop_size;
     if w * h <= 32 * 32 && mediareg::scene::cost::long_render_warning(&scene, 1).is_none() {
         REACHED[2].fetch_add(1, Ordering::Relaxed);
         let (img, _) = mediareg::integrator::render(&scene, false);
-        assert!(
+        prop_assert!(
             img.pixels
                 .iter()
                 .flatten()
@@ -217,6 +265,7 @@ fn exercise_scene(path: &Path) {
             "a pixel is negative or not finite"
         );
     }
+    Ok(())
 }
 
 #[test]
@@ -235,14 +284,11 @@ fn fuzz_scene_files() {
     write(&dir, "tri.obj", TRI_OBJ);
     let path: PathBuf = dir.join("scene.xml");
     let strategy = (0..seeds.len(), proptest::collection::vec(edit(), 1..4));
-    runner()
-        .run(&strategy, |(i, edits)| {
-            let data = mutate(seeds[i].1.clone(), &edits);
-            std::fs::write(&path, &data).unwrap();
-            exercise_scene(&path);
-            Ok(())
-        })
-        .unwrap_or_else(|e| panic!("{e}"));
+    run(&strategy, |(i, edits)| {
+        let data = mutate(seeds[i].1.clone(), &edits);
+        std::fs::write(&path, &data).unwrap();
+        exercise_scene(&path)
+    });
     let [l, b, r] = REACHED.each_ref().map(|a| a.load(Ordering::Relaxed));
     println!("{} mutants: {l} loaded, {b} built, {r} rendered", cases());
     // The harness reaches the builder and the integrator, not only the XML parser.
@@ -265,25 +311,23 @@ fn fuzz_mesh_files() {
     }
     let dir = tmp_dir("fuzz", "meshes");
     let strategy = (0..seeds.len(), proptest::collection::vec(edit(), 1..4));
-    runner()
-        .run(&strategy, |(i, edits)| {
-            let (ext, data) = &seeds[i];
-            let path = dir.join(format!("mesh.{ext}"));
-            std::fs::write(&path, mutate(data.clone(), &edits)).unwrap();
-            let r = if ext == "ply" {
-                read_ply(&path)
-            } else {
-                read_obj(&path)
-            };
-            // A panic inside ply-rs or tobj is caught and reported as an error; count it
-            // as a failure all the same (the message would be vaguer than it can be).
-            if let Err(e) = r {
-                prop_assert!(
-                    !e.to_string().contains("reader failed"),
-                    "a mesh reader panicked: {e}"
-                );
-            }
-            Ok(())
-        })
-        .unwrap_or_else(|e| panic!("{e}"));
+    run(&strategy, |(i, edits)| {
+        let (ext, data) = &seeds[i];
+        let path = dir.join(format!("mesh.{ext}"));
+        std::fs::write(&path, mutate(data.clone(), &edits)).unwrap();
+        let r = if ext == "ply" {
+            read_ply(&path)
+        } else {
+            read_obj(&path)
+        };
+        // A panic inside ply-rs or tobj is caught and reported as an error; count it
+        // as a failure all the same (the message would be vaguer than it can be).
+        if let Err(e) = r {
+            prop_assert!(
+                !e.to_string().contains("reader failed"),
+                "a mesh reader panicked: {e}"
+            );
+        }
+        Ok(())
+    });
 }

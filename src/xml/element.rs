@@ -48,14 +48,31 @@ impl LineIndex {
 
 /// Reads and parses `path` into its root element.
 pub fn read_file(path: &Path) -> Result<Element> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
+    let bytes = std::fs::read(path).map_err(|e| {
         SceneError::new(
             Some(Loc::file_only(path)),
             format!("cannot read scene file: {e}"),
         )
     })?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        // Name the line of the first byte that is not UTF-8 (the text before it is).
+        let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let valid = std::str::from_utf8(valid).unwrap_or_default();
+        let (line, col) = LineIndex::new(valid).line_col(valid.len());
+        SceneError::at(
+            &Loc::new(&Arc::new(path.to_path_buf()), line, col),
+            "the scene file is not UTF-8 text",
+        )
+        .with_hint("save the file as UTF-8 (Mitsuba scene files are XML text)")
+    })?;
     parse_str(&text, path)
 }
+
+/// How deep elements may nest. Real scenes nest a handful of levels (a shape, its
+/// twosided bsdf, the inner bsdf, a texture, a transform); the loader and the tree's
+/// destructor recurse once a level, so input-driven depth must be bounded before a
+/// crafted file can exhaust the stack.
+pub const MAX_DEPTH: usize = 64;
 
 /// Parses XML text; `path` is used only for error locations.
 pub fn parse_str(text: &str, path: &Path) -> Result<Element> {
@@ -90,8 +107,18 @@ pub fn parse_str(text: &str, path: &Path) -> Result<Element> {
                 ));
             }
             Event::Start(e) => {
-                let el = element_from(&e, loc_at(start_offset + leading_ws(text, start_offset)))?;
-                stack.push(el);
+                let loc = loc_at(start_offset + leading_ws(text, start_offset));
+                if stack.len() >= MAX_DEPTH {
+                    return Err(SceneError::at(
+                        &loc,
+                        format!("elements are nested more than {MAX_DEPTH} deep"),
+                    )
+                    .with_hint(
+                        "a Mitsuba scene nests a few levels (scene, shape, bsdf, texture); \
+                         check for unclosed tags or a generated file gone wrong",
+                    ));
+                }
+                stack.push(element_from(&e, loc)?);
             }
             Event::Empty(e) => {
                 let el = element_from(&e, loc_at(start_offset + leading_ws(text, start_offset)))?;

@@ -40,6 +40,10 @@ struct Loader {
     strict_v3: bool,
 }
 
+/// How many files deep `<include>`s may chain: each level's elements nest inside the
+/// including element, so the chain is bounded like the nesting within one file.
+const MAX_INCLUDE_DEPTH: usize = 16;
+
 /// Mitsuba 3 upgrades files whose `version` is below 2.0.0.
 #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Debug)]
 struct Version(u32, u32, u32);
@@ -377,6 +381,13 @@ impl Loader {
                 &el.loc,
                 format!("cyclic include: \"{}\" includes itself", path.display()),
             );
+        }
+        if self.include_stack.len() >= MAX_INCLUDE_DEPTH {
+            return Err(SceneError::at(
+                &el.loc,
+                format!("includes are nested more than {MAX_INCLUDE_DEPTH} files deep"),
+            )
+            .with_hint("include the files from one top-level file instead of a chain"));
         }
         let root = read_file(&path)?;
         let version = self.root_version(&root)?;
