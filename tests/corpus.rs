@@ -17,12 +17,16 @@ enum Status {
     /// Refused: the words its error must contain.
     Refused(&'static str),
     /// Renders, and matches the committed Mitsuba 3 reference `reference/NAME` (made
-    /// with these parameters): `chunks` independent renders of `spp` samples.
+    /// with these parameters): `chunks` independent renders of `spp` samples. With
+    /// `power: Some((anchor, factor))`, a copy of the file whose first `value` after
+    /// `anchor` is scaled by `factor` must fail the same comparison: a power test beside
+    /// the match.
     Matches {
         reference: &'static str,
         params: &'static [(&'static str, &'static str)],
         chunks: usize,
         spp: u32,
+        power: Option<(&'static str, f64)>,
     },
 }
 use Status::*;
@@ -41,6 +45,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[],
             chunks: 8,
             spp: 64,
+            power: Some(("name=\"albedo\"", 0.98)),
         },
     ),
     // A gridvolume albedo makes the medium heterogeneous: out of scope, refused by name.
@@ -60,6 +65,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[],
             chunks: 16,
             spp: 128,
+            power: None,
         },
     ),
     (
@@ -70,6 +76,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[],
             chunks: 16,
             spp: 128,
+            power: None,
         },
     ),
     (
@@ -79,6 +86,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[],
             chunks: 16,
             spp: 128,
+            power: None,
         },
     ),
     (
@@ -89,6 +97,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[],
             chunks: 16,
             spp: 128,
+            power: None,
         },
     ),
     (
@@ -104,6 +113,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[],
             chunks: 16,
             spp: 128,
+            power: None,
         },
     ),
     // Heterogeneous media are out of scope: refused by name.
@@ -134,16 +144,20 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[],
             chunks: 16,
             spp: 128,
+            power: None,
         },
     ),
     (
         "mdata_cbox",
         Matches {
-            // Sampled spectra: reflectances and the light's radiance.
+            // Sampled spectra: reflectances and the light's radiance. The gaussian
+            // filter triples the variance of a sum of pixels (κ ≈ 3), so 256 spp keep
+            // the power test's margin (2% darker walls: image mean z −9.8).
             reference: "corpus_mdata_cbox",
             params: &[("res", "64")],
             chunks: 8,
-            spp: 64,
+            spp: 256,
+            power: Some(("id=\"white\"", 0.98)),
         },
     ),
     (
@@ -154,6 +168,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[("width", "171"), ("height", "128")],
             chunks: 8,
             spp: 64,
+            power: Some(("name=\"diffuse_reflectance\"", 1.02)),
         },
     ),
     (
@@ -163,6 +178,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[],
             chunks: 8,
             spp: 2,
+            power: None,
         },
     ),
     (
@@ -175,6 +191,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[],
             chunks: 8,
             spp: 32,
+            power: Some(("name=\"reflectance\"", 1.02)),
         },
     ),
     (
@@ -192,6 +209,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[("res", "64")],
             chunks: 8,
             spp: 32,
+            power: None,
         },
     ),
     (
@@ -204,6 +222,7 @@ const EXPECTED: &[(&str, Status)] = &[
             params: &[("res", "64")],
             chunks: 16,
             spp: 256,
+            power: Some(("id=\"white\"", 0.98)),
         },
     ),
 ];
@@ -246,6 +265,41 @@ fn names_file_and_line(line: &str) -> bool {
         && line
             .split_once(".xml:")
             .is_some_and(|(_, rest)| rest.starts_with(|c: char| c.is_ascii_digit()))
+}
+
+/// The text from `anchor` in `scene` to the first `value="…"` after it, and the same
+/// with every number of the value (each value of a sampled spectrum's `λ:value` pairs)
+/// times `factor`.
+fn scaled_value(scene: &std::path::Path, anchor: &str, factor: f64) -> (String, String) {
+    let text = std::fs::read_to_string(scene).unwrap();
+    let at = text
+        .find(anchor)
+        .unwrap_or_else(|| panic!("no {anchor} in the scene"));
+    let start = at
+        + text[at..]
+            .find("value=\"")
+            .expect("a value after the anchor");
+    let len = text[start + 7..].find('"').expect("a closed value") + 8;
+    let from = &text[start..start + len];
+    let scale = |v: &str| {
+        let x: f64 = v.trim().parse().expect("a number");
+        format!("{}", x * factor)
+    };
+    let scaled: Vec<String> = from[7..len - 1]
+        .split(',')
+        .flat_map(|p| p.split_whitespace().map(str::to_string).collect::<Vec<_>>())
+        .map(|p| match p.split_once(':') {
+            Some((wl, v)) => format!("{wl}:{}", scale(v)),
+            None => scale(&p),
+        })
+        .collect();
+    // From the anchor on, so that the edit lands there even where the same value
+    // stands earlier in the file.
+    let before = &text[at..start];
+    (
+        format!("{before}{from}"),
+        format!("{before}value=\"{}\"", scaled.join(", ")),
+    )
 }
 
 fn corpus() -> Option<PathBuf> {
@@ -292,12 +346,30 @@ fn every_corpus_scene_renders_or_is_refused_clearly() {
                 params,
                 chunks,
                 spp,
+                power,
             } => {
                 let c = common::check_file_against_reference(
                     reference, &entry, params, *chunks, *spp, 21,
                 );
                 if !c.passed {
                     failures.push(format!("{name}: differs from reference/{reference}: {c}"));
+                }
+                if let Some((anchor, factor)) = power {
+                    let edit = scaled_value(&entry, anchor, *factor);
+                    let c = common::check_edited_against_reference(
+                        reference,
+                        &entry,
+                        &dir.join(name),
+                        params,
+                        &[(&edit.0, &edit.1)],
+                        None,
+                        *chunks,
+                        *spp,
+                        22,
+                    );
+                    if c.passed {
+                        failures.push(format!("{name}: power edit {power:?} went undetected: {c}"));
+                    }
                 }
             }
         }

@@ -15,9 +15,7 @@
 
 mod common;
 
-use common::{
-    independent_width, load_seeded, reference, render_gradient_chunks, root, ALPHA, FALSE_ALARM,
-};
+use common::{layout, load_seeded, reference, render_gradient_chunks, root, ALPHA, FALSE_ALARM};
 use mediareg::image::stats::{compare, Comparison, Estimate};
 use mediareg::integrator::volpath::Gradient;
 use mediareg::integrator::{render_with, RenderOptions};
@@ -141,14 +139,9 @@ fn check(gradient: Gradient, scale: f32, seed: u64) -> Comparison {
             *p = p.map(|v| v * scale);
         }
     }
-    let ours = Estimate::from_chunks(&chunks);
-    let c = compare(
-        &ours,
-        &r.estimate,
-        independent_width(&cube(), &PARAMS),
-        ALPHA,
-        FALSE_ALARM,
-    );
+    let layout = layout(&cube(), &PARAMS);
+    let ours = Estimate::from_chunks(&chunks, layout);
+    let c = compare(&ours, &r.estimate, layout, ALPHA, FALSE_ALARM);
     println!("gradient {gradient:?} x{scale}: {c}");
     c
 }

@@ -75,6 +75,18 @@ fn cbox_gaussian_filter_matches_mitsuba() {
     assert!(c.passed, "{c}");
 }
 
+/// Power with the gaussian filter (correlated pixels): the walls' reflectance 2% off.
+#[test]
+fn gaussian_filter_comparison_detects_reflectance_off_by_two_percent() {
+    let c = check_scene(
+        "cbox_gaussian",
+        "cbox",
+        &[("filter", "gaussian"), ("wall_reflectance", "0.765")],
+        71,
+    );
+    assert!(!c.passed, "a 2% reflectance change went undetected: {c}");
+}
+
 #[test]
 fn dielectric_sphere_matches_mitsuba() {
     let c = check("dielectric_sphere", &[], 2);
@@ -87,10 +99,33 @@ fn bunny_ply_matches_mitsuba() {
     assert!(c.passed, "{c}");
 }
 
+/// Lucy covers a small part of the image: at 64 spp a 2% darker Lucy moved the image
+/// mean by only 4.3 σ, so this scene runs at SPP_ROUGH, equivalence and power alike.
 #[test]
 fn lucy_obj_matches_mitsuba() {
-    let c = check("lucy_obj", &[], 4);
+    let c = check_against_reference("lucy_obj", "lucy_obj", &[], CHUNKS, SPP_ROUGH, 4);
     assert!(c.passed, "{c}");
+}
+
+/// Power: the floor under the glass sphere 2% darker (0.6 → 0.588), seen through it too.
+#[test]
+fn dielectric_sphere_comparison_detects_floor_off_by_two_percent() {
+    let c = check("dielectric_sphere", &[("floor_reflectance", "0.588")], 72);
+    assert!(!c.passed, "a 2% reflectance change went undetected: {c}");
+}
+
+/// Power on the OBJ mesh: Lucy 2% darker (0.8 → 0.784).
+#[test]
+fn lucy_obj_comparison_detects_reflectance_off_by_two_percent() {
+    let c = check_against_reference(
+        "lucy_obj",
+        "lucy_obj",
+        &[("lucy_reflectance", "0.784")],
+        CHUNKS,
+        SPP_ROUGH,
+        73,
+    );
+    assert!(!c.passed, "a 2% reflectance change went undetected: {c}");
 }
 
 /// Power: the walls' reflectance 2% off (0.75 → 0.765) must fail the comparison.

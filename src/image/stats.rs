@@ -7,20 +7,57 @@
 //! * per value, `z = (m_a − m_b) / √(v_a + v_b)` is approximately Student-t distributed;
 //!   we use ν = min(dof_a, dof_b), below Welch's ν, so the tails we assume are heavier
 //!   than the true ones (conservative);
-//! * a value is an outlier when |z| exceeds the two-sided t quantile at `alpha`; the
-//!   number of outliers is Binomial(N, alpha) and the test allows the count whose upper
-//!   tail probability is below `false_alarm`;
-//! * the same on the means of 8×8 blocks of pixels (at α = 1e-2: there are few), which
+//! * a pixel is an outlier when any of its three channels has |z| beyond the two-sided
+//!   t quantile at α/3: by the union bound at most α per pixel, however R, G and B move
+//!   together (on a grey scene they move as one). Outlier pixels among independent
+//!   pixels are Binomial(N, ≤ α), and the test allows the count whose upper tail is below
+//!   its share of `false_alarm`;
+//! * the same on the means of square blocks of pixels (at α = 1e-2: there are few), which
 //!   catches regional differences too small for one pixel that cancel in the image mean;
-//! * the image mean per channel, `Σ (m_a − m_b) / N`, has variance `Σ (v_a + v_b) / N²`
-//!   (pixels are independent: own random streams, box filter); its z must stay below the
-//!   normal quantile at `false_alarm` (split over the three channels).
+//! * the image mean per channel, with a normal quantile at its share of `false_alarm`
+//!   split over the three channels.
 //!
-//! The block and global checks need independent pixels; with a wider reconstruction
-//! filter only the per-pixel check runs.
+//! Pixels are independent with the box filter (each sample lands in one pixel). A wider
+//! reconstruction filter (radius r) splats each sample into every pixel within r, so
+//! pixels closer than 2r along x or y share samples ([`PixelLayout::spacing`]):
+//! * the pixel test runs on the s × s interleaved lattices of pixels s = ⌈2r⌉ apart,
+//!   each a set of independent pixels with its share of the false-alarm budget;
+//! * blocks keep a gap of s − 1 pixels between them (only their inner part is used), so
+//!   blocks are independent too;
+//! * the variance of a sum of pixels is not the sum of their variances: it is
+//!   `κ · Σ v`, with the variance inflation `κ = 1 + Σ_i Σ_{j ≠ i, within reach} Cov(i, j)
+//!   / Σ_i Var(i)` estimated from the chunks of a side that has them (pooled over the
+//!   image: many pairs, so a precise estimate) and used for both sides (same filter, same
+//!   sampling). A block loses the covariances across its edge, so the image's κ bounds
+//!   its own from above (conservative).
 
 use serde::Serialize;
 use statrs::distribution::{Binomial, ContinuousCDF, DiscreteCDF, Normal, StudentsT};
+
+/// How an image's pixels depend on each other: its width and the reconstruction
+/// filter's radius in pixels (0.5 for the box filter).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelLayout {
+    pub width: usize,
+    pub filter_radius: f32,
+}
+
+impl PixelLayout {
+    /// Independent pixels (the box filter).
+    pub fn independent(width: usize) -> PixelLayout {
+        PixelLayout {
+            width,
+            filter_radius: 0.5,
+        }
+    }
+
+    /// Pixels this many apart along x or y (or more) share no sample: a sample reaches
+    /// the pixels within r of it, so two pixels 2r apart have no sample in common. 1 for
+    /// the box filter.
+    pub fn spacing(&self) -> usize {
+        ((2.0 * self.filter_radius - 1e-4).ceil() as usize).max(1)
+    }
+}
 
 /// Per-value mean and variance of the mean, with its degrees of freedom.
 #[derive(Clone, Debug)]
@@ -28,11 +65,15 @@ pub struct Estimate {
     pub mean: Vec<[f64; 3]>,
     pub var_mean: Vec<[f64; 3]>,
     pub dof: f64,
+    /// Per channel, the variance of a sum of pixels over the sum of their variances
+    /// (see the module comment), measured from the chunks; None where the estimate has
+    /// no chunks (a reference stores the mean and variance only).
+    pub inflation: Option<[f64; 3]>,
 }
 
 impl Estimate {
-    /// From `k ≥ 2` independent renders of equal sample count.
-    pub fn from_chunks(chunks: &[Vec<[f32; 3]>]) -> Estimate {
+    /// From `k ≥ 2` independent renders of equal sample count, laid out as `layout`.
+    pub fn from_chunks(chunks: &[Vec<[f32; 3]>], layout: PixelLayout) -> Estimate {
         let k = chunks.len();
         assert!(k >= 2, "need at least two independent chunks");
         let n = chunks[0].len();
@@ -50,33 +91,100 @@ impl Estimate {
                 var_mean[i][c] = s2 / k as f64;
             }
         }
+        let inflation = Some(inflation(chunks, &mean, &var_mean, layout));
         Estimate {
             mean,
             var_mean,
             dof: (k - 1) as f64,
+            inflation,
+        }
+    }
+
+    /// From a mean and a variance of the mean with `dof` degrees of freedom, without
+    /// chunks (a stored reference, or an exact image with zero variance).
+    pub fn from_moments(mean: Vec<[f64; 3]>, var_mean: Vec<[f64; 3]>, dof: f64) -> Estimate {
+        Estimate {
+            mean,
+            var_mean,
+            dof,
+            inflation: None,
         }
     }
 }
 
-/// Outliers among one set of z values (pixels, or blocks of pixels).
-#[derive(Clone, Debug, Serialize)]
-pub struct OutlierTest {
-    /// Values compared (per channel).
-    pub values: usize,
-    pub alpha: f64,
-    /// |z| beyond this is an outlier: the two-sided t quantile at `alpha`.
-    pub threshold: f64,
-    pub outliers: usize,
-    /// The most outliers Binomial(values, alpha) allows at the test's share of the
-    /// false-alarm probability.
-    pub allowed: usize,
-    pub max_abs_z: f64,
+/// κ per channel: 1 + Σ_i Σ_{j ≠ i within reach} Ĉov(i, j) / Σ_i v̂_i, the pairwise
+/// sample covariances of the chunks (bilinear, so the sum over the pairs is the sample
+/// variance of the sum without the pairs that share no sample and only add noise).
+fn inflation(
+    chunks: &[Vec<[f32; 3]>],
+    mean: &[[f64; 3]],
+    var_mean: &[[f64; 3]],
+    layout: PixelLayout,
+) -> [f64; 3] {
+    let reach = layout.spacing() as isize - 1;
+    if reach == 0 {
+        return [1.0; 3];
+    }
+    let (w, n, k) = (layout.width, mean.len(), chunks.len());
+    let h = n / w;
+    let mut cross = [0.0f64; 3];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            for dy in -reach..=reach {
+                for dx in -reach..=reach {
+                    let (xj, yj) = (x as isize + dx, y as isize + dy);
+                    if (dx, dy) == (0, 0)
+                        || xj < 0
+                        || yj < 0
+                        || xj >= w as isize
+                        || yj >= h as isize
+                    {
+                        continue;
+                    }
+                    let j = yj as usize * w + xj as usize;
+                    for (c, sum) in cross.iter_mut().enumerate() {
+                        let cov: f64 = chunks
+                            .iter()
+                            .map(|img| {
+                                (img[i][c] as f64 - mean[i][c]) * (img[j][c] as f64 - mean[j][c])
+                            })
+                            .sum();
+                        // Sample covariance of one chunk, over k for the mean's.
+                        *sum += cov / (k - 1) as f64 / k as f64;
+                    }
+                }
+            }
+        }
+    }
+    [0, 1, 2].map(|c| {
+        let var: f64 = var_mean.iter().map(|v| v[c]).sum();
+        if var > 0.0 {
+            // Never below the independent case's 1 by noise alone (conservative).
+            (1.0 + cross[c] / var).max(1.0)
+        } else {
+            1.0
+        }
+    })
 }
 
-impl OutlierTest {
-    fn passed(&self) -> bool {
-        self.outliers <= self.allowed
-    }
+/// Outliers among one family of independent values (pixels of one lattice, or blocks):
+/// a value is an outlier when any channel's |z| passes the threshold.
+#[derive(Clone, Debug, Serialize)]
+pub struct OutlierTest {
+    /// Values compared (pixels or blocks, each with three channels).
+    pub values: usize,
+    /// The per-value outlier level (union over the three channels).
+    pub alpha: f64,
+    /// |z| beyond this is an outlier: the two-sided t quantile at α/3.
+    pub threshold: f64,
+    pub outliers: usize,
+    /// The most outliers Binomial(values, α) allows at the test's share of the
+    /// false-alarm probability (summed over the lattices of a filtered image).
+    pub allowed: usize,
+    pub max_abs_z: f64,
+    /// Whether every lattice stayed within its allowance.
+    pub passed: bool,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -84,12 +192,14 @@ pub struct Comparison {
     /// z of the image mean, per channel.
     pub global_z: [f64; 3],
     pub global_threshold: f64,
-    /// Per pixel and channel.
+    /// Per pixel (on the independent lattices).
     pub pixels: OutlierTest,
-    /// Per `block`×`block` tile of pixels and channel (regional differences too small
-    /// to stand out in one pixel, which may cancel in the global mean).
+    /// Per `block`×`block` tile of pixels (regional differences too small to stand out
+    /// in one pixel, which may cancel in the global mean).
     pub blocks: OutlierTest,
     pub block: usize,
+    /// The variance inflation κ used for sums of pixels (1 with independent pixels).
+    pub inflation: [f64; 3],
     pub passed: bool,
 }
 
@@ -116,7 +226,15 @@ impl std::fmt::Display for Comparison {
             b.threshold,
             b.allowed,
             b.max_abs_z
-        )
+        )?;
+        if self.inflation != [1.0; 3] {
+            write!(
+                f,
+                "; variance inflation [{:.2}, {:.2}, {:.2}]",
+                self.inflation[0], self.inflation[1], self.inflation[2]
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -124,7 +242,8 @@ impl std::fmt::Display for Comparison {
 /// 8×8), so a larger α keeps the test sensitive while the Binomial allowance keeps the
 /// false-alarm probability where it is asked to be.
 pub const BLOCK_ALPHA: f64 = 1e-2;
-/// Side of the blocks of the regional test, in pixels.
+/// Side of the blocks of the regional test with independent pixels, in pixels. With a
+/// filter the side is at least 4 spacings, so that the gap between blocks costs little.
 pub const BLOCK: usize = 8;
 
 /// z of a difference `d` with variance `v`; a value with zero variance on both sides is
@@ -144,105 +263,152 @@ fn z_of(d: f64, v: f64, a: f64, b: f64) -> f64 {
     }
 }
 
-/// Counts |z| > t-quantile(α) among `zs` and the allowance of Binomial(n, α) at `budget`.
-fn outlier_test(zs: &[f64], alpha: f64, nu: f64, budget: f64) -> OutlierTest {
-    let t = StudentsT::new(0.0, 1.0, nu).expect("valid t distribution");
-    let threshold = t.inverse_cdf(1.0 - alpha / 2.0);
-    let binom = Binomial::new(alpha, zs.len() as u64).expect("valid binomial");
-    // Smallest k with P(X > k) < budget.
+/// The most outliers among `n` values with P(outlier) ≤ α: the smallest k with
+/// P(Binomial(n, α) > k) < budget.
+fn allowance(n: usize, alpha: f64, budget: f64) -> usize {
+    if n == 0 {
+        return 0;
+    }
+    let binom = Binomial::new(alpha, n as u64).expect("valid binomial");
     let mut allowed = 0u64;
     while binom.sf(allowed) >= budget {
         allowed += 1;
     }
-    OutlierTest {
-        values: zs.len(),
-        alpha,
-        threshold,
-        outliers: zs.iter().filter(|z| z.abs() > threshold).count(),
-        allowed: allowed as usize,
-        max_abs_z: zs.iter().fold(0.0f64, |m, z| m.max(z.abs())),
-    }
+    allowed as usize
 }
 
-/// Compares two estimates of an image; `alpha` is the per-pixel outlier level,
-/// `false_alarm` the probability that two estimates of the same image fail any of the
-/// three checks (a third each: pixels, blocks, global mean).
+/// Counts, in each family of independent values (each value's three channel z's), the
+/// values with a channel beyond the t quantile at α/3, against Binomial(n, α) at an
+/// equal share of `budget` per family.
+fn outlier_test(families: &[Vec<[f64; 3]>], alpha: f64, nu: f64, budget: f64) -> OutlierTest {
+    let t = StudentsT::new(0.0, 1.0, nu).expect("valid t distribution");
+    let threshold = t.inverse_cdf(1.0 - alpha / 3.0 / 2.0);
+    let share = budget / families.len().max(1) as f64;
+    let mut test = OutlierTest {
+        values: 0,
+        alpha,
+        threshold,
+        outliers: 0,
+        allowed: 0,
+        max_abs_z: 0.0,
+        passed: true,
+    };
+    for zs in families {
+        let max_z = |z: &[f64; 3]| z.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+        let outliers = zs.iter().filter(|z| max_z(z) > threshold).count();
+        let allowed = allowance(zs.len(), alpha, share);
+        test.values += zs.len();
+        test.outliers += outliers;
+        test.allowed += allowed;
+        test.passed &= outliers <= allowed;
+        test.max_abs_z = zs.iter().fold(test.max_abs_z, |m, z| m.max(max_z(z)));
+    }
+    test
+}
+
+/// Compares two estimates of an image laid out as `layout`; `alpha` is the per-pixel
+/// outlier level, `false_alarm` the probability that two estimates of the same image
+/// fail any of the three checks (a third each: pixels, blocks, global mean).
 ///
-/// `independent_width`: the image width when pixels are independent (box filter: each
-/// sample lands in one pixel). With a wider reconstruction filter neighbouring pixels
-/// share samples, the variance of a sum of pixels is not the sum of their variances, and
-/// only the per-pixel test is valid: pass `None` and the other two are skipped.
+/// With a filter wider than a pixel, at least one side must come from chunks
+/// ([`Estimate::from_chunks`]), to measure how neighbouring pixels covary.
 pub fn compare(
     a: &Estimate,
     b: &Estimate,
-    independent_width: Option<usize>,
+    layout: PixelLayout,
     alpha: f64,
     false_alarm: f64,
 ) -> Comparison {
     assert_eq!(a.mean.len(), b.mean.len(), "images differ in size");
-    let width = independent_width.unwrap_or(a.mean.len());
+    let width = layout.width;
     assert!(
         width > 0 && a.mean.len().is_multiple_of(width),
         "width does not divide the image"
     );
     let height = a.mean.len() / width;
-    let independent = independent_width.is_some();
+    let s = layout.spacing();
+    let inflation = if s == 1 {
+        [1.0; 3]
+    } else {
+        match (a.inflation, b.inflation) {
+            // Both measured: the larger (conservative).
+            (Some(ka), Some(kb)) => [0, 1, 2].map(|c| ka[c].max(kb[c])),
+            (Some(k), None) | (None, Some(k)) => k,
+            (None, None) => panic!(
+                "a filtered image's comparison needs one side's chunks to measure how \
+                 neighbouring pixels covary (Estimate::from_chunks)"
+            ),
+        }
+    };
     let nu = a.dof.min(b.dof);
     let budget = false_alarm / 3.0;
     let normal = Normal::new(0.0, 1.0).expect("valid normal");
     // Global: two-sided, split over the 3 channels.
     let global_threshold = normal.inverse_cdf(1.0 - budget / 3.0 / 2.0);
 
-    let mut pixel_z = Vec::with_capacity(a.mean.len() * 3);
-    let mut diff_sum = [0.0f64; 3];
-    let mut var_sum = [0.0f64; 3];
-    for i in 0..a.mean.len() {
-        for c in 0..3 {
-            let d = a.mean[i][c] - b.mean[i][c];
-            let v = a.var_mean[i][c] + b.var_mean[i][c];
-            diff_sum[c] += d;
-            var_sum[c] += v;
-            pixel_z.push(z_of(d, v, a.mean[i][c], b.mean[i][c]));
-        }
-    }
-    // Blocks: the mean difference over the block's pixels; pixels are independent (own
-    // random streams, box filter), so its variance is Σ v / n².
-    let mut block_z = Vec::new();
-    for by in (0..if independent { height } else { 0 }).step_by(BLOCK) {
-        for bx in (0..width).step_by(BLOCK) {
+    // z of the mean difference over a set of pixels; Var of a sum = κ Σ v.
+    let region_z = |pixels: &mut dyn Iterator<Item = usize>| -> [f64; 3] {
+        let (mut d, mut v, mut ma, mut mb, mut n) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3], 0.0);
+        for i in pixels {
             for c in 0..3 {
-                let (mut d, mut v, mut ma, mut mb, mut n) = (0.0, 0.0, 0.0, 0.0, 0.0);
-                for y in by..(by + BLOCK).min(height) {
-                    for x in bx..(bx + BLOCK).min(width) {
-                        let i = y * width + x;
-                        d += a.mean[i][c] - b.mean[i][c];
-                        v += a.var_mean[i][c] + b.var_mean[i][c];
-                        ma += a.mean[i][c];
-                        mb += b.mean[i][c];
-                        n += 1.0;
-                    }
-                }
-                block_z.push(z_of(d / n, v / (n * n), ma / n, mb / n));
+                d[c] += a.mean[i][c] - b.mean[i][c];
+                v[c] += a.var_mean[i][c] + b.var_mean[i][c];
+                ma[c] += a.mean[i][c];
+                mb[c] += b.mean[i][c];
             }
+            n += 1.0;
+        }
+        [0, 1, 2].map(|c| {
+            z_of(
+                d[c] / n,
+                inflation[c] * v[c] / (n * n),
+                ma[c] / n,
+                mb[c] / n,
+            )
+        })
+    };
+
+    // Pixels: one family per lattice of pixels `s` apart.
+    let mut lattices = vec![Vec::new(); s * s];
+    for y in 0..height {
+        for x in 0..width {
+            let i = y * width + x;
+            let z = [0, 1, 2].map(|c| {
+                z_of(
+                    a.mean[i][c] - b.mean[i][c],
+                    a.var_mean[i][c] + b.var_mean[i][c],
+                    a.mean[i][c],
+                    b.mean[i][c],
+                )
+            });
+            lattices[(y % s) * s + x % s].push(z);
         }
     }
-    let global_z = [0, 1, 2].map(|c| {
-        if var_sum[c] > 0.0 && independent {
-            diff_sum[c] / var_sum[c].sqrt()
-        } else {
-            0.0
+    // Blocks: tiles of side `block`, of which the inner `block − (s − 1)` pixels are used,
+    // so that no two blocks share a sample.
+    let block = BLOCK.max(4 * s);
+    let inner = block - (s - 1);
+    let mut blocks = Vec::new();
+    for by in (0..height).step_by(block) {
+        for bx in (0..width).step_by(block) {
+            let (y1, x1) = ((by + inner).min(height), (bx + inner).min(width));
+            blocks.push(region_z(
+                &mut (by..y1).flat_map(|y| (bx..x1).map(move |x| y * width + x)),
+            ));
         }
-    });
-    let pixels = outlier_test(&pixel_z, alpha, nu, budget);
-    let blocks = outlier_test(&block_z, BLOCK_ALPHA.max(alpha), nu, budget);
+    }
+    let global_z = region_z(&mut (0..a.mean.len()));
+    let pixels = outlier_test(&lattices, alpha, nu, budget);
+    let blocks = outlier_test(&[blocks], BLOCK_ALPHA.max(alpha), nu, budget);
     let passed =
-        global_z.iter().all(|z| z.abs() <= global_threshold) && pixels.passed() && blocks.passed();
+        global_z.iter().all(|z| z.abs() <= global_threshold) && pixels.passed && blocks.passed;
     Comparison {
         global_z,
         global_threshold,
         pixels,
         blocks,
-        block: BLOCK,
+        block,
+        inflation,
         passed,
     }
 }
@@ -275,12 +441,13 @@ mod tests {
 
     #[test]
     fn same_distribution_passes_and_shift_fails() {
-        let a = Estimate::from_chunks(&noisy(1, 4096, 8, 0.0));
-        let b = Estimate::from_chunks(&noisy(2, 4096, 8, 0.0));
-        let c = compare(&a, &b, Some(64), 1e-3, 1e-6);
+        let layout = PixelLayout::independent(64);
+        let a = Estimate::from_chunks(&noisy(1, 4096, 8, 0.0), layout);
+        let b = Estimate::from_chunks(&noisy(2, 4096, 8, 0.0), layout);
+        let c = compare(&a, &b, layout, 1e-3, 1e-6);
         assert!(c.passed, "{c}");
-        let shifted = Estimate::from_chunks(&noisy(3, 4096, 8, 0.01));
-        let c = compare(&shifted, &b, Some(64), 1e-3, 1e-6);
+        let shifted = Estimate::from_chunks(&noisy(3, 4096, 8, 0.01), layout);
+        let c = compare(&shifted, &b, layout, 1e-3, 1e-6);
         assert!(!c.passed, "a 2% shift must be detected: {c}");
     }
 }

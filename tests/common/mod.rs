@@ -6,7 +6,7 @@ pub mod scene_text;
 
 use std::path::{Path, PathBuf};
 
-use mediareg::image::stats::{compare, Comparison, Estimate};
+use mediareg::image::stats::{compare, Comparison, Estimate, PixelLayout};
 use mediareg::scene::Scene;
 use mediareg::xml::LoadOptions;
 use mediareg::BuildOverrides;
@@ -126,9 +126,32 @@ pub struct Reference {
     pub estimate: Estimate,
     /// The crop window the reference covers, if it is one (`--crop`).
     pub crop: Option<[usize; 4]>,
+    /// The width of its image (the window's, for a window).
+    pub width: usize,
 }
 
 impl Reference {
+    /// The window `[x, y, w, h]` of a full-film reference.
+    pub fn window(&self, [x, y, w, h]: [usize; 4]) -> Reference {
+        assert!(self.crop.is_none(), "the reference is a window already");
+        let width = self.width;
+        let pick = |v: &[[f64; 3]]| {
+            (y..y + h)
+                .flat_map(|row| (x..x + w).map(move |col| row * width + col))
+                .map(|i| v[i])
+                .collect::<Vec<_>>()
+        };
+        Reference {
+            estimate: Estimate::from_moments(
+                pick(&self.estimate.mean),
+                pick(&self.estimate.var_mean),
+                self.estimate.dof,
+            ),
+            crop: Some([x, y, w, h]),
+            width: w,
+        }
+    }
+
     /// Mean squared error of `img` against the reference over pixels and channels, with
     /// the reference's own variance of the mean subtracted (an unbiased estimate of the
     /// error against the true image).
@@ -174,12 +197,13 @@ pub fn reference(name: &str, scene: &Path) -> Reference {
         .unwrap_or_else(|e| panic!("{e:#}"));
     let to64 = |v: &[[f32; 3]]| v.iter().map(|p| p.map(|c| c as f64)).collect::<Vec<_>>();
     Reference {
-        estimate: Estimate {
-            mean: to64(&r.mean.pixels),
-            var_mean: to64(&r.var.pixels),
-            dof: r.meta.chunks as f64 - 1.0,
-        },
+        estimate: Estimate::from_moments(
+            to64(&r.mean.pixels),
+            to64(&r.var.pixels),
+            r.meta.chunks as f64 - 1.0,
+        ),
         crop: r.meta.crop,
+        width: r.mean.width,
     }
 }
 
@@ -187,25 +211,24 @@ pub fn reference(name: &str, scene: &Path) -> Reference {
 pub const ALPHA: f64 = 1e-3;
 pub const FALSE_ALARM: f64 = 1e-6;
 
-/// Whether the scene's pixels are independent (box filter), and then the image width:
-/// what `compare` needs to run its block and global checks.
-pub fn independent_width(scene: &Path, params: &[(&str, &str)]) -> Option<usize> {
-    independent_width_crop(scene, params, None)
+/// The scene's image width and reconstruction filter: how its pixels depend on each
+/// other, which `compare` needs.
+pub fn layout(scene: &Path, params: &[(&str, &str)]) -> PixelLayout {
+    layout_crop(scene, params, None)
 }
 
-/// `independent_width` of a crop window.
-pub fn independent_width_crop(
-    scene: &Path,
-    params: &[(&str, &str)],
-    crop: Option<[usize; 4]>,
-) -> Option<usize> {
+/// `layout` of a crop window.
+pub fn layout_crop(scene: &Path, params: &[(&str, &str)], crop: Option<[usize; 4]>) -> PixelLayout {
     let overrides = BuildOverrides {
         crop,
         ..Default::default()
     };
     let s =
         mediareg::load_scene(scene, &options(params), &overrides).unwrap_or_else(|e| panic!("{e}"));
-    matches!(s.film.rfilter, mediareg::scene::film::Rfilter::Box).then_some(s.film.crop_size.0)
+    PixelLayout {
+        width: s.film.crop_size.0,
+        filter_radius: s.film.rfilter.radius(),
+    }
 }
 
 /// Renders mitsuba_scenes/`scene`.xml as `chunks` independent images of `spp` samples
@@ -232,11 +255,109 @@ pub fn check_file_against_reference(
     seed: u64,
 ) -> Comparison {
     let r = reference(name, scene);
-    let ours = Estimate::from_chunks(&render_chunks_crop(
-        scene, params, chunks, spp, seed, r.crop,
-    ));
-    let width = independent_width_crop(scene, params, r.crop);
-    let c = compare(&ours, &r.estimate, width, ALPHA, FALSE_ALARM);
+    compare_render(name, &r, scene, params, r.crop, chunks, spp, seed)
+}
+
+/// Renders `scene` as `chunks` independent images of `spp` samples (of the film's
+/// window `crop`) and compares their mean with `reference` (of the same window).
+#[allow(clippy::too_many_arguments)]
+fn compare_render(
+    name: &str,
+    reference: &Reference,
+    scene: &Path,
+    params: &[(&str, &str)],
+    crop: Option<[usize; 4]>,
+    chunks: usize,
+    spp: u32,
+    seed: u64,
+) -> Comparison {
+    let layout = layout_crop(scene, params, crop);
+    let ours = Estimate::from_chunks(
+        &render_chunks_crop(scene, params, chunks, spp, seed, crop),
+        layout,
+    );
+    let c = compare(&ours, &reference.estimate, layout, ALPHA, FALSE_ALARM);
     println!("{name} {params:?}: {c}");
     c
+}
+
+/// Compares a window `[x, y, w, h]` of mitsuba_scenes/`scene`.xml with the same window of
+/// its full-film reference `name` (box filter: the crop is that window of a full
+/// render), so that a large reference costs a small render.
+pub fn check_window_against_reference(
+    name: &str,
+    scene: &str,
+    params: &[(&str, &str)],
+    window: [usize; 4],
+    chunks: usize,
+    spp: u32,
+    seed: u64,
+) -> Comparison {
+    let scene = root().join("mitsuba_scenes").join(format!("{scene}.xml"));
+    let r = reference(name, &scene).window(window);
+    compare_render(name, &r, &scene, params, Some(window), chunks, spp, seed)
+}
+
+/// Power checks on files without a parameter to turn: `scene` (with `params`) with each `(from, to)`
+/// text replaced (each must occur), rendered from a copy and compared with the
+/// reference of the unedited file. The copy lives in a mirror of `tree` (a folder above
+/// the scene; everything in it but the scene's own path linked), so relative `<path>`s,
+/// includes and assets resolve as for the original.
+#[allow(clippy::too_many_arguments)]
+pub fn check_edited_against_reference(
+    name: &str,
+    scene: &Path,
+    tree: &Path,
+    params: &[(&str, &str)],
+    edits: &[(&str, &str)],
+    window: Option<[usize; 4]>,
+    chunks: usize,
+    spp: u32,
+    seed: u64,
+) -> Comparison {
+    let mut r = reference(name, scene);
+    let crop = match window {
+        Some(w) => {
+            r = r.window(w);
+            Some(w)
+        }
+        None => r.crop,
+    };
+    let mut text = std::fs::read_to_string(scene).expect("scene text");
+    for (from, to) in edits {
+        assert!(
+            text.contains(from),
+            "{}: no {from:?} to edit",
+            scene.display()
+        );
+        text = text.replacen(from, to, 1);
+    }
+    let rel = scene
+        .strip_prefix(tree)
+        .expect("the scene lies in the tree");
+    let mirror = scene_text::tmp_dir("edited", &format!("{name}_{seed}"));
+    let edited = mirror_tree(tree, rel, &mirror, &text);
+    compare_render(name, &r, &edited, params, crop, chunks, spp, seed)
+}
+
+/// Mirrors `tree` into `out`: along `rel`'s folders real folders whose other entries
+/// are links to the originals, and at `rel` the file `text`. Returns its path.
+fn mirror_tree(tree: &Path, rel: &Path, out: &Path, text: &str) -> PathBuf {
+    let (mut src, mut dst) = (tree.to_path_buf(), out.to_path_buf());
+    let parts: Vec<_> = rel.components().collect();
+    for (i, part) in parts.iter().enumerate() {
+        std::fs::create_dir_all(&dst).unwrap();
+        for entry in std::fs::read_dir(&src).unwrap().flatten() {
+            let link = dst.join(entry.file_name());
+            if entry.file_name() != part.as_os_str() && !link.exists() {
+                std::os::unix::fs::symlink(entry.path(), &link).unwrap();
+            }
+        }
+        src = src.join(part);
+        dst = dst.join(part);
+        if i + 1 == parts.len() {
+            std::fs::write(&dst, text).unwrap();
+        }
+    }
+    dst
 }
