@@ -375,9 +375,11 @@ fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
-    if let Some(w) =
-        mediareg::scene::cost::long_render_warning(&scene, rayon::current_num_threads())
-    {
+    if let Some(w) = mediareg::scene::cost::long_render_warning(
+        &scene,
+        &scene.shot,
+        rayon::current_num_threads(),
+    ) {
         eprintln!("warning: {w}");
     }
     Ok((scene, out_exr))
@@ -464,12 +466,14 @@ fn run(cli: Cli) -> Result<()> {
 
             let show = std::io::stderr().is_terminal();
             install_interrupt_handler()?;
-            let rendered = integrator::render_with(
+            let rendered = integrator::render(
                 &scene_data,
+                &scene_data.shot,
                 &integrator::RenderOptions {
                     show_progress: show,
                     gradient,
                     cancel: Some(&INTERRUPT),
+                    ..Default::default()
                 },
             );
             let (img, stats) = (&rendered.image, &rendered.stats);
@@ -482,7 +486,7 @@ fn run(cli: Cli) -> Result<()> {
                 }
                 eprintln!(
                     "warning: interrupted at {} of {} spp; the EXR header's \"spp\" says so",
-                    stats.spp, scene_data.spp
+                    stats.spp, scene_data.shot.spp
                 );
             }
             // The spp reached (less than asked for when interrupted), in the EXR header.
@@ -535,7 +539,7 @@ fn run(cli: Cli) -> Result<()> {
             spatial,
             predict,
         } => {
-            let (mut scene_data, out_exr) = prepare(&args)?;
+            let (scene_data, out_exr) = prepare(&args)?;
             let medium = scene_data
                 .medium_index(medium.as_deref())
                 .map_err(|e| anyhow!("regularize: {e}"))?;
@@ -558,11 +562,13 @@ fn run(cli: Cli) -> Result<()> {
                 PredictArg::Linear => Method::Linear,
                 PredictArg::Loglinear => Method::LogLinear,
             };
+            // The target frame: the file's shot, or the camera path's last transform.
+            let mut shot = scene_data.shot.clone();
             let path = match (orbit, dolly, camera_path) {
                 (Some(degrees), _, _) => {
                     let target = match target {
                         Some(t) => parse_point(&t)?,
-                        None => image_centre_point(&scene_data).ok_or_else(|| anyhow!("--orbit: the image centre sees no surface; give the orbit's centre with --target x,y,z"))?,
+                        None => image_centre_point(&scene_data, &scene_data.shot).ok_or_else(|| anyhow!("--orbit: the image centre sees no surface; give the orbit's centre with --target x,y,z"))?,
                     };
                     CameraPath::Orbit {
                         degrees_per_frame: degrees,
@@ -576,7 +582,7 @@ fn run(cli: Cli) -> Result<()> {
                     let p = CameraPath::read(&file).map_err(|e| anyhow!("{e}"))?;
                     // The file's last transform is the target frame.
                     if let CameraPath::Transforms(list) = &p {
-                        scene_data.camera.to_world = *list.last().expect("not empty");
+                        shot.camera.to_world = *list.last().expect("not empty");
                     }
                     p
                 }
@@ -602,7 +608,8 @@ fn run(cli: Cli) -> Result<()> {
                 method,
                 show_progress: std::io::stderr().is_terminal(),
             };
-            let r = regularize::regularize(&mut scene_data, &opts).map_err(|e| anyhow!("{e}"))?;
+            let r =
+                regularize::regularize(&scene_data, &shot, &opts).map_err(|e| anyhow!("{e}"))?;
 
             let outputs: [(PathBuf, &Image, bool); 4] = [
                 (out_exr.clone(), &r.predicted, false),
@@ -646,7 +653,7 @@ fn run(cli: Cli) -> Result<()> {
                 fmt3(a.target),
                 r.frames_rendered,
                 r.mean_frames,
-                scene_data.spp,
+                shot.spp,
                 r.c_beta.map_or("-".into(), |c| format!("{c:.4}")),
             );
             println!(

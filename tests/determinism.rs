@@ -29,7 +29,11 @@ fn render_window(name: &str, threads: usize, seed: u64, crop: Option<[usize; 4]>
         .num_threads(threads)
         .build()
         .unwrap();
-    pool.install(|| mediareg::integrator::render(&scene, false).0.pixels)
+    pool.install(|| {
+        mediareg::integrator::render(&scene, &scene.shot, &Default::default())
+            .image
+            .pixels
+    })
 }
 
 #[test]

@@ -47,6 +47,9 @@ struct Measured {
     failures: [usize; 4],
     /// Mean of the image-mean z² over trials and channels (1 when calibrated).
     global_z2: f64,
+    max_global_z: f64,
+    /// The smallest and largest limit the global test set.
+    global_limits: (f64, f64),
 }
 
 /// Compares disjoint groups of `CHUNKS` from a pool of renders of `scene`, `n` times.
@@ -57,6 +60,8 @@ fn measure(pool: &[Vec<[f32; 3]>], layout: PixelLayout, n: usize, seed: u64) -> 
         trials: n,
         failures: [0; 4],
         global_z2: 0.0,
+        max_global_z: 0.0,
+        global_limits: (f64::INFINITY, 0.0),
     };
     for _ in 0..n {
         // Partial Fisher–Yates: the first 2 · CHUNKS are a random draw without repeats.
@@ -79,6 +84,14 @@ fn measure(pool: &[Vec<[f32; 3]>], layout: PixelLayout, n: usize, seed: u64) -> 
             *f += failed as usize;
         }
         m.global_z2 += c.global_z.iter().map(|z| z * z).sum::<f64>() / 3.0;
+        m.max_global_z = c
+            .global_z
+            .iter()
+            .fold(m.max_global_z, |a, z| a.max(z.abs()));
+        m.global_limits = (
+            m.global_limits.0.min(c.global_threshold),
+            m.global_limits.1.max(c.global_threshold),
+        );
     }
     m.global_z2 /= n as f64;
     m
@@ -90,14 +103,19 @@ fn pool(scene: &Path, params: &[(&str, &str)], spp: u32) -> Vec<Vec<[f32; 3]>> {
 
 fn report(name: &str, m: &Measured) {
     let [p, b, g, any] = m.failures;
-    let bound = if any == 0 {
-        3.0 / m.trials as f64
-    } else {
-        any as f64 / m.trials as f64
-    };
+    // The 95% upper bound on a rate from `any` events in `trials` (Poisson, exact:
+    // χ²_{0.95}(2 (k + 1)) / 2n; 3/n for none).
+    let chi2 = statrs::distribution::ChiSquared::new(2.0 * (any as f64 + 1.0)).unwrap();
+    let bound =
+        statrs::distribution::ContinuousCDF::inverse_cdf(&chi2, 0.95) / 2.0 / m.trials as f64;
     println!(
-        "{name}: {} trials, failures {p} / {b} / {g} (any {any}), rate bound {bound:.1e}, mean global z² {:.2}",
-        m.trials, m.global_z2
+        "{name}: {} trials, failures {p} / {b} / {g} (any {any}), rate {:.1e}, 95% bound {bound:.1e}, mean global z² {:.2}, max |global z| {:.2} (limit {:.2} to {:.2})",
+        m.trials,
+        any as f64 / m.trials as f64,
+        m.global_z2,
+        m.max_global_z,
+        m.global_limits.0,
+        m.global_limits.1
     );
 }
 

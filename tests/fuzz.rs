@@ -253,10 +253,12 @@ fn exercise_scene(path: &Path) -> Result<(), TestCaseError> {
         }
     };
     REACHED[1].fetch_add(1, Ordering::Relaxed);
-    let (w, h) = scene.film.crop_size;
-    if w * h <= 32 * 32 && mediareg::scene::cost::long_render_warning(&scene, 1).is_none() {
+    let (w, h) = scene.shot.film.crop_size;
+    if w * h <= 32 * 32
+        && mediareg::scene::cost::long_render_warning(&scene, &scene.shot, 1).is_none()
+    {
         REACHED[2].fetch_add(1, Ordering::Relaxed);
-        let (img, _) = mediareg::integrator::render(&scene, false);
+        let img = mediareg::integrator::render(&scene, &scene.shot, &Default::default()).image;
         prop_assert!(
             img.pixels
                 .iter()

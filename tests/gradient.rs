@@ -18,7 +18,7 @@ mod common;
 use common::{layout, load_seeded, reference, render_gradient_chunks, root, ALPHA, FALSE_ALARM};
 use mediareg::image::stats::{compare, Comparison, Estimate};
 use mediareg::integrator::volpath::Gradient;
-use mediareg::integrator::{render_with, RenderOptions};
+use mediareg::integrator::RenderOptions;
 
 const CHUNKS: usize = 16;
 const SPP: u32 = 128;
@@ -46,8 +46,9 @@ fn render_scene(
     gradient: Gradient,
 ) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
     let s = load_seeded(scene, params, spp, seed);
-    let r = render_with(
+    let r = mediareg::integrator::render(
         &s,
+        &s.shot,
         &RenderOptions {
             show_progress: false,
             gradient,
@@ -218,8 +219,9 @@ fn spatial_denoising_lowers_the_gradient_error() {
     use mediareg::regularize::spatial::{denoise, first_hit_features, BilateralParams};
     let r = reference("medium_cube_dalbedo", &cube());
     let s = load_seeded(&cube(), &PARAMS, 32, 41);
-    let out = render_with(
+    let out = mediareg::integrator::render(
         &s,
+        &s.shot,
         &RenderOptions {
             show_progress: false,
             gradient: Gradient::Albedo(0),
@@ -227,7 +229,7 @@ fn spatial_denoising_lowers_the_gradient_error() {
         },
     );
     let grad = out.gradient.unwrap().pixels;
-    let features = first_hit_features(&s);
+    let features = first_hit_features(&s, &s.shot);
     assert!(
         features.depth.iter().any(|d| d.is_infinite()),
         "the sky is visible"
@@ -237,7 +239,7 @@ fn spatial_denoising_lowers_the_gradient_error() {
         .iter()
         .zip(&features.depth)
         .all(|(n, d)| !d.is_finite() || (n.length() - 1.0).abs() < 1e-3));
-    let width = s.film.crop_size.0;
+    let width = s.shot.film.crop_size.0;
     let denoised = denoise(
         &grad,
         &out.image.pixels,

@@ -30,7 +30,7 @@ mod common;
 
 use common::scene_text::{tmp_dir, write};
 use mediareg::integrator::volpath::Gradient;
-use mediareg::integrator::{render_with, RenderOptions};
+use mediareg::integrator::{render, RenderOptions};
 use mediareg::scene::Scene;
 use mediareg::BuildOverrides;
 
@@ -214,13 +214,13 @@ fn transmittance_image(scene: &Scene, n: usize) -> (Vec<f64>, f64) {
                     x as f32 + (i as f32 + 0.5) / n as f32,
                     y as f32 + (j as f32 + 0.5) / n as f32,
                 );
-                let ray = scene.camera.sample_ray(pos);
+                let ray = scene.shot.camera.sample_ray(pos);
                 s += chord_t(ray.o, ray.d, ray.tmax);
             }
         }
         s / (n * n) as f64
     };
-    let (w, h) = (scene.film.width, scene.film.height);
+    let (w, h) = (scene.shot.film.width, scene.shot.film.height);
     let mut fine = Vec::with_capacity(w * h);
     let mut err: f64 = 0.0;
     for y in 0..h {
@@ -244,8 +244,9 @@ fn run_cell(c: &Cell, reference: Option<&[f64]>, failures: &mut Vec<String>) -> 
         Gradient::None
     };
     let start = std::time::Instant::now();
-    let r = render_with(
+    let r = render(
         &scene,
+        &scene.shot,
         &RenderOptions {
             show_progress: false,
             gradient,
@@ -476,7 +477,7 @@ fn dense_medium_mesh_boundary_matches_analytic_sphere() {
             load_seeded(&write(&dir, &name, &xml), seed)
         };
         let render = |scene: &Scene| {
-            let r = render_with(scene, &RenderOptions::default());
+            let r = render(scene, &scene.shot, &RenderOptions::default());
             assert_eq!(r.stats.invalid_samples, 0, "NaN/Inf samples");
             assert!(r
                 .image
@@ -543,13 +544,14 @@ fn very_long_render_is_announced() {
     let unbounded = scene_with(
         r#"<integer name="max_depth" value="-1"/><integer name="rr_depth" value="1000000000"/>"#,
     );
-    let w = long_render_warning(&unbounded, 2).expect("a warning");
+    let w = long_render_warning(&unbounded, &unbounded.shot, 2).expect("a warning");
     for needle in ["fog", "max_depth", "rr_depth", "hours"] {
         assert!(w.contains(needle), "warning lacks {needle:?}: {w}");
     }
     let capped = scene_with(
         r#"<integer name="max_depth" value="64"/><integer name="rr_depth" value="1000000000"/>"#,
     );
-    assert_eq!(long_render_warning(&capped, 2), None);
-    assert_eq!(long_render_warning(&scene_with(""), 2), None);
+    assert_eq!(long_render_warning(&capped, &capped.shot, 2), None);
+    let plain = scene_with("");
+    assert_eq!(long_render_warning(&plain, &plain.shot, 2), None);
 }

@@ -527,9 +527,9 @@ fn nested_plugins() {
              <medium type="homogeneous" name="interior"><phase type="hg"><float name="g" value="-0.4"/></phase></medium>
            </shape>"#,
     );
-    assert_eq!(scene.spp, 9);
-    assert_eq!((scene.film.width, scene.film.height), (6, 3));
-    assert_eq!(scene.film.rfilter, Rfilter::Tent { radius: 1.5 });
+    assert_eq!(scene.shot.spp, 9);
+    assert_eq!((scene.shot.film.width, scene.shot.film.height), (6, 3));
+    assert_eq!(scene.shot.film.rfilter, Rfilter::Tent { radius: 1.5 });
     let info = &scene.shapes[0];
     match &scene.bsdfs[info.bsdf as usize] {
         Bsdf::TwoSided(b) => {
@@ -585,9 +585,9 @@ fn old_version_camel_case_is_upgraded() {
         "toWorld → to_world"
     );
     let scene = build_desc("old_version", &desc);
-    assert_eq!(scene.spp, 16);
-    assert_close(scene.camera.near_clip as f64, 0.5, 1e-7, "nearClip");
-    assert_close(scene.camera.far_clip as f64, 200.0, 1e-7, "farClip");
+    assert_eq!(scene.shot.spp, 16);
+    assert_close(scene.shot.camera.near_clip as f64, 0.5, 1e-7, "nearClip");
+    assert_close(scene.shot.camera.far_clip as f64, 200.0, 1e-7, "farClip");
     assert_close(
         dielectric_eta(&scene.bsdfs[scene.shapes[0].bsdf as usize]) as f64,
         1.6 / 1.1,
@@ -601,9 +601,9 @@ fn old_version_camel_case_is_upgraded() {
         [0.0, 0.0, 5.0, 1.0],
     ]);
     assert!(
-        scene.camera.to_world.abs_diff_eq(want, 1e-6),
+        scene.shot.camera.to_world.abs_diff_eq(want, 1e-6),
         "camera to_world {} vs Mitsuba {want}",
-        scene.camera.to_world
+        scene.shot.camera.to_world
     );
 }
 
@@ -782,7 +782,7 @@ fn perspective_fov_axis() {
             w,
             h,
         );
-        let got = scene.camera.tan_half_fov_x as f64;
+        let got = scene.shot.camera.tan_half_fov_x as f64;
         let what = format!("fov_axis={axis}, film {w}x{h}");
         let a = w as f64 / h as f64;
         assert_close(
@@ -798,7 +798,7 @@ fn perspective_fov_axis() {
             &format!("{what} (Mitsuba x_fov {x_fov})"),
         );
         assert_close(
-            scene.camera.aspect as f64,
+            scene.shot.camera.aspect as f64,
             a,
             1e-7,
             &format!("{what}: aspect"),
@@ -812,29 +812,34 @@ fn perspective_fov_axis() {
 fn perspective_defaults() {
     let scene = build_raw("cam_defaults", r#"<sensor type="perspective"/>"#);
     assert_close(
-        scene.camera.tan_half_fov_x as f64,
+        scene.shot.camera.tan_half_fov_x as f64,
         (0.5 * 38.18484115600586f64).to_radians().tan(),
         1e-6,
         "default (50mm) horizontal fov",
     );
     assert_close(
-        scene.camera.near_clip as f64,
+        scene.shot.camera.near_clip as f64,
         1e-2,
         1e-6,
         "default near_clip",
     );
-    assert_close(scene.camera.far_clip as f64, 1e4, 1e-6, "default far_clip");
+    assert_close(
+        scene.shot.camera.far_clip as f64,
+        1e4,
+        1e-6,
+        "default far_clip",
+    );
     assert_eq!(
-        (scene.film.width, scene.film.height),
+        (scene.shot.film.width, scene.shot.film.height),
         (768, 576),
         "default film size"
     );
     assert_eq!(
-        scene.film.rfilter,
+        scene.shot.film.rfilter,
         Rfilter::Gaussian { stddev: 0.5 },
         "default rfilter"
     );
-    assert_eq!((scene.spp, scene.seed), (4, 0), "default sampler");
+    assert_eq!((scene.shot.spp, scene.shot.seed), (4, 0), "default sampler");
 }
 
 #[test]
@@ -845,8 +850,8 @@ fn perspective_near_far_clip() {
         8,
         4,
     );
-    assert_close(scene.camera.near_clip as f64, 0.25, 1e-7, "near_clip");
-    assert_close(scene.camera.far_clip as f64, 75.0, 1e-7, "far_clip");
+    assert_close(scene.shot.camera.near_clip as f64, 0.25, 1e-7, "near_clip");
+    assert_close(scene.shot.camera.far_clip as f64, 75.0, 1e-7, "far_clip");
 }
 
 #[test]
@@ -860,13 +865,17 @@ fn hdrfilm_size_and_crop() {
                <integer name="crop_width" value="16"/><integer name="crop_height" value="20"/>
              </film></sensor>"#,
     );
-    assert_eq!((scene.film.width, scene.film.height), (64, 48), "film size");
-    assert_eq!(scene.film.crop_offset, (8, 4), "crop offset");
-    assert_eq!(scene.film.crop_size, (16, 20), "crop size");
+    assert_eq!(
+        (scene.shot.film.width, scene.shot.film.height),
+        (64, 48),
+        "film size"
+    );
+    assert_eq!(scene.shot.film.crop_offset, (8, 4), "crop offset");
+    assert_eq!(scene.shot.film.crop_size, (16, 20), "crop size");
     // Without crop, the crop window is the whole film.
     let scene = camera_scene("nocrop", r#"<float name="fov" value="40"/>"#, 10, 7);
-    assert_eq!(scene.film.crop_offset, (0, 0));
-    assert_eq!(scene.film.crop_size, (10, 7));
+    assert_eq!(scene.shot.film.crop_offset, (0, 0));
+    assert_eq!(scene.shot.film.crop_size, (10, 7));
 }
 
 #[test]
@@ -894,6 +903,7 @@ fn rfilter_of(tag: &str, rfilter: &str) -> Rfilter {
                  <film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/>{rfilter}</film></sensor>"#
         ),
     )
+    .shot
     .film
     .rfilter
 }
@@ -938,8 +948,8 @@ fn independent_sampler_count_and_seed() {
              <sampler type="independent"><integer name="sample_count" value="37"/><integer name="seed" value="12345"/></sampler>
            </sensor>"#,
     );
-    assert_eq!(scene.spp, 37, "sample_count");
-    assert_eq!(scene.seed, 12345, "seed");
+    assert_eq!(scene.shot.spp, 37, "sample_count");
+    assert_eq!(scene.shot.seed, 12345, "seed");
 }
 
 // ---------------------------------------------------------------------------------------

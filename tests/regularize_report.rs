@@ -133,7 +133,8 @@ fn regularize_cube_report() {
     // For the fitted variants: c_β chosen with the reference (best on a grid) on the same renders.
     let mut sweeps = Vec::new();
     // Warm up (thread pool, caches) so that the first timed render is not slower.
-    mediareg::integrator::render(&load_seeded(&cube, &[], 64, 0), false);
+    let warm = load_seeded(&cube, &[], 64, 0);
+    mediareg::integrator::render(&warm, &warm.shot, &Default::default());
     for spp in [64u32, 256] {
         // Plain volpath at the target albedo: its MSE and seconds per sample.
         let mut plain = Row {
@@ -146,7 +147,8 @@ fn regularize_cube_report() {
         };
         for &seed in &SEEDS {
             let s = load_seeded(&cube, &[], spp, seed);
-            let (img, stats) = mediareg::integrator::render(&s, false);
+            let out = mediareg::integrator::render(&s, &s.shot, &Default::default());
+            let (img, stats) = (out.image, out.stats);
             plain.seconds.push(stats.seconds);
             plain.mse.push(r.mse(&img.pixels));
         }
@@ -155,7 +157,11 @@ fn regularize_cube_report() {
         let equal_time = |seconds: f64, seed: u64| {
             let spp_eq = ((spp as f64 * seconds / plain_seconds).round() as u32).max(1);
             let s = load_seeded(&cube, &[], spp_eq, seed + 1000);
-            r.mse(&mediareg::integrator::render(&s, false).0.pixels)
+            r.mse(
+                &mediareg::integrator::render(&s, &s.shot, &Default::default())
+                    .image
+                    .pixels,
+            )
         };
         for (name, opts) in &variants {
             let mut row = Row {
@@ -168,8 +174,8 @@ fn regularize_cube_report() {
             };
             let mut sweep_mse = vec![0.0; C_BETA_GRID.len()];
             for &seed in &SEEDS {
-                let mut s = load_seeded(&cube, &[], spp, seed);
-                let out = regularize::regularize(&mut s, opts).unwrap();
+                let s = load_seeded(&cube, &[], spp, seed);
+                let out = regularize::regularize(&s, &s.shot, opts).unwrap();
                 let t = &out.timings;
                 let seconds = t.target_frame + t.fit + t.denoise_and_predict;
                 row.seconds.push(seconds);

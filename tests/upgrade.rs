@@ -26,7 +26,12 @@ fn v06_scene_renders_as_its_mitsuba3_form() {
         )
         .unwrap_or_else(|e| panic!("{name}: {e}"));
         let notes = s.warnings.iter().filter(|w| w.contains("0.6 file")).count();
-        (mediareg::integrator::render(&s, false).0.pixels, notes)
+        (
+            mediareg::integrator::render(&s, &s.shot, &Default::default())
+                .image
+                .pixels,
+            notes,
+        )
     };
     let (old, notes) = render("v06_chromatic_sphere");
     let (new, _) = render("chromatic_sphere");

@@ -191,8 +191,8 @@ fn old_files_are_upgraded_like_mitsuba() {
     let desc = load_file(&path, &LoadOptions::default()).unwrap();
     let s = build_scene(&desc, &BuildOverrides::default()).unwrap();
     assert_eq!(s.integrator.max_depth, 4);
-    assert_eq!(s.spp, 9);
-    let d = s.camera.to_world.transform_vector3(glam::Vec3::Z);
+    assert_eq!(s.shot.spp, 9);
+    let d = s.shot.camera.to_world.transform_vector3(glam::Vec3::Z);
     assert!(
         (d - glam::Vec3::NEG_Z).length() < 1e-6,
         "lookAt upgraded to lookat: {d}"
@@ -272,12 +272,15 @@ fn perspective_fov_axes_and_clipping() {
         .unwrap();
         let s = build_scene(&desc, &BuildOverrides::default()).unwrap();
         assert!(
-            close(s.camera.tan_half_fov_x as f64, want, 1e-6),
+            close(s.shot.camera.tan_half_fov_x as f64, want, 1e-6),
             "{axis}: {} vs {want}",
-            s.camera.tan_half_fov_x
+            s.shot.camera.tan_half_fov_x
         );
-        assert_eq!((s.camera.near_clip, s.camera.far_clip), (0.5, 50.0));
-        assert_eq!(s.camera.aspect, 2.0);
+        assert_eq!(
+            (s.shot.camera.near_clip, s.shot.camera.far_clip),
+            (0.5, 50.0)
+        );
+        assert_eq!(s.shot.camera.aspect, 2.0);
     }
     for bad in ["0", "180"] {
         let body =
@@ -303,9 +306,9 @@ fn film_crop_and_filters() {
         build_scene(&desc, &BuildOverrides::default()).unwrap_or_else(|e| panic!("{e}"))
     };
     let s = film("defaults", "");
-    assert_eq!((s.film.width, s.film.height), (768, 576));
+    assert_eq!((s.shot.film.width, s.shot.film.height), (768, 576));
     assert_eq!(
-        s.film.rfilter,
+        s.shot.film.rfilter,
         Rfilter::Gaussian { stddev: 0.5 },
         "hdrfilm defaults to a gaussian filter"
     );
@@ -316,11 +319,15 @@ fn film_crop_and_filters() {
            <integer name="crop_width" value="20"/><integer name="crop_height" value="30"/><rfilter type="box"/>"#,
     );
     assert_eq!(
-        (s.film.crop_offset, s.film.crop_size, s.film.rfilter),
+        (
+            s.shot.film.crop_offset,
+            s.shot.film.crop_size,
+            s.shot.film.rfilter
+        ),
         ((10, 5), (20, 30), Rfilter::Box)
     );
     assert_eq!(
-        film("tent", r#"<rfilter type="tent"/>"#).film.rfilter,
+        film("tent", r#"<rfilter type="tent"/>"#).shot.film.rfilter,
         Rfilter::Tent { radius: 1.0 }
     );
     assert_eq!(
@@ -328,6 +335,7 @@ fn film_crop_and_filters() {
             "gauss",
             r#"<rfilter type="gaussian"><float name="stddev" value="0.3"/></rfilter>"#
         )
+        .shot
         .film
         .rfilter,
         Rfilter::Gaussian { stddev: 0.3 }
@@ -359,7 +367,7 @@ fn sampler_and_integrator() {
     )
     .unwrap();
     let s = build_scene(&desc, &BuildOverrides::default()).unwrap();
-    assert_eq!((s.spp, s.seed), (33, 5));
+    assert_eq!((s.shot.spp, s.shot.seed), (33, 5));
     assert_eq!(s.integrator.kind, IntegratorKind::Path);
     assert_eq!(
         (
@@ -379,7 +387,7 @@ fn sampler_and_integrator() {
     )
     .unwrap();
     assert_eq!(
-        (s.spp, s.seed),
+        (s.shot.spp, s.shot.seed),
         (2, 9),
         "--spp and --seed override the file"
     );

@@ -14,8 +14,9 @@
 //!   its share of `false_alarm`;
 //! * the same on the means of square blocks of pixels (at α = 1e-2: there are few), which
 //!   catches regional differences too small for one pixel that cancel in the image mean;
-//! * the image mean per channel, with a normal quantile at its share of `false_alarm`
-//!   split over the three channels.
+//! * the image mean per channel, with a t quantile at its share of `false_alarm` split
+//!   over the three channels, at the Welch–Satterthwaite degrees of freedom of its
+//!   summed variance (a normal quantile where that is exact).
 //!
 //! Pixels are independent with the box filter (each sample lands in one pixel). A wider
 //! reconstruction filter (radius r) splats each sample into every pixel within r, so
@@ -342,9 +343,34 @@ pub fn compare(
     };
     let nu = a.dof.min(b.dof);
     let budget = false_alarm / 3.0;
-    let normal = Normal::new(0.0, 1.0).expect("valid normal");
-    // Global: two-sided, split over the 3 channels.
-    let global_threshold = normal.inverse_cdf(1.0 - budget / 3.0 / 2.0);
+    // Global: two-sided, split over the 3 channels, at the Welch–Satterthwaite degrees
+    // of freedom of the summed variances, ν = (Σ v)² / Σ (v_a² / ν_a + v_b² / ν_b): a few
+    // bright, noisy pixels can dominate the sum, and then its estimate is far less sure
+    // than the pixel count suggests (the tails of z are heavier than normal).
+    let global_nu = (0..3)
+        .map(|c| {
+            let (mut sum, mut sq) = (0.0f64, 0.0f64);
+            for (va, vb) in a.var_mean.iter().zip(&b.var_mean) {
+                sum += va[c] + vb[c];
+                sq += va[c] * va[c] / a.dof + vb[c] * vb[c] / b.dof;
+            }
+            if sq > 0.0 {
+                sum * sum / sq
+            } else {
+                f64::INFINITY
+            }
+        })
+        .fold(f64::INFINITY, f64::min);
+    let global_p = 1.0 - budget / 3.0 / 2.0;
+    let global_threshold = if global_nu.is_finite() {
+        StudentsT::new(0.0, 1.0, global_nu.max(nu))
+            .expect("valid t distribution")
+            .inverse_cdf(global_p)
+    } else {
+        Normal::new(0.0, 1.0)
+            .expect("valid normal")
+            .inverse_cdf(global_p)
+    };
 
     // z of the mean difference over a set of pixels; Var of a sum = κ Σ v.
     let region_z = |pixels: &mut dyn Iterator<Item = usize>| -> [f64; 3] {

@@ -18,6 +18,7 @@ use rayon::prelude::*;
 
 use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::scene::film::ImageBlock;
+use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene, SurfaceInteraction};
 use sampler::Pcg32;
 
@@ -124,15 +125,41 @@ pub struct RenderStats {
     pub interrupted: bool,
 }
 
-/// What to render besides the radiance, and how to report progress.
-#[derive(Clone, Copy, Debug, Default)]
+/// What to render besides the radiance, what to change in the scene for this render
+/// alone, and how to report progress.
+#[derive(Clone, Debug, Default)]
 pub struct RenderOptions {
     pub show_progress: bool,
     /// A derivative image to estimate in the same paths (volpath only).
     pub gradient: volpath::Gradient,
+    /// Per medium, the albedo to render with instead of the scene's (the paper's method
+    /// renders at a lower albedo); None renders the scene's.
+    pub albedo: Option<Vec<Vec3>>,
     /// Set (e.g. by a Ctrl-C handler) to stop: the pass under way is dropped and the
     /// image of the passes completed is returned.
     pub cancel: Option<&'static AtomicBool>,
+}
+
+impl RenderOptions {
+    /// The same options with `medium`'s albedo replaced (the others as `scene` has them
+    /// or as already replaced).
+    pub fn with_albedo(mut self, scene: &Scene, medium: u32, albedo: Vec3) -> RenderOptions {
+        let mut all = self
+            .albedo
+            .take()
+            .unwrap_or_else(|| scene.media.iter().map(|m| m.albedo).collect());
+        all[medium as usize] = albedo;
+        self.albedo = Some(all);
+        self
+    }
+}
+
+/// What a render fixes for all its paths besides the scene: each medium's albedo (the
+/// scene's or the render's override) and the derivative asked for.
+#[derive(Clone, Copy, Debug)]
+pub struct PathSettings<'a> {
+    pub albedo: &'a [Vec3],
+    pub gradient: volpath::Gradient,
 }
 
 /// Sample ranges of the passes: 1, 1, 2, 4, … doubling up to max(1, spp / 8).
@@ -158,29 +185,29 @@ pub struct Rendered {
     pub stats: RenderStats,
 }
 
-/// Renders `scene` at its `spp` and `seed` (the CLI overrides both through `BuildOverrides`).
-pub fn render(scene: &Scene, show_progress: bool) -> (Image, RenderStats) {
-    let r = render_with(
-        scene,
-        &RenderOptions {
-            show_progress,
-            ..Default::default()
-        },
-    );
-    (r.image, r.stats)
-}
-
-/// Renders radiance and, with `opts.gradient`, its derivative: each sample is splatted
-/// into both images with the same filter weight.
-pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
+/// Renders `scene` through `shot` (Mitsuba's `render(scene, sensor, seed, spp)`):
+/// radiance and, with `opts.gradient`, its derivative, each sample splatted into both
+/// images with the same filter weight.
+pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     let show_progress = opts.show_progress;
     let gradient = opts.gradient;
     let with_gradient = gradient != volpath::Gradient::None;
-    let film = &scene.film;
+    let albedo: Vec<Vec3> = match &opts.albedo {
+        Some(a) => {
+            assert_eq!(a.len(), scene.media.len(), "one albedo per medium");
+            a.clone()
+        }
+        None => scene.media.iter().map(|m| m.albedo).collect(),
+    };
+    let settings = PathSettings {
+        albedo: &albedo,
+        gradient,
+    };
+    let film = &shot.film;
     let (cw, ch) = film.crop_size;
     let (ox, oy) = film.crop_offset;
     let border = film.rfilter.border();
-    let spp = scene.spp;
+    let spp = shot.spp;
     let sample = |o, d, tmax, rng: &mut Pcg32| match scene.integrator.kind {
         IntegratorKind::Path => (path::sample(scene, o, d, tmax, rng), Vec3::ZERO),
         IntegratorKind::Direct {
@@ -190,7 +217,7 @@ pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
             direct::sample(scene, o, d, tmax, rng, emitter_samples, bsdf_samples),
             Vec3::ZERO,
         ),
-        IntegratorKind::Volpath => volpath::sample(scene, o, d, tmax, rng, gradient),
+        IntegratorKind::Volpath => volpath::sample(scene, &settings, o, d, tmax, rng),
     };
 
     let mut tiles = Vec::new();
@@ -246,10 +273,10 @@ pub fn render_with(scene: &Scene, opts: &RenderOptions) -> Rendered {
                         let (fx, fy) = (x + ox, y + oy);
                         let pixel = (fy * film.width + fx) as u64;
                         for si in s0..s1 {
-                            let mut rng = Pcg32::for_sample(scene.seed, pixel, si as u64);
+                            let mut rng = Pcg32::for_sample(shot.seed, pixel, si as u64);
                             let u = rng.next_2d();
                             let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
-                            let ray = scene.camera.sample_ray(pos);
+                            let ray = shot.camera.sample_ray(pos);
                             let (mut l, mut dl) = sample(ray.o, ray.d, ray.tmax, &mut rng);
                             if !l.is_finite() || !dl.is_finite() {
                                 invalid += 1;

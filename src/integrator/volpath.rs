@@ -51,7 +51,7 @@ use glam::{Vec3, Vec3A};
 
 use super::path::mis_weight;
 use super::sampler::Pcg32;
-use super::{sample_light_at_surface, skip_emitters};
+use super::{sample_light_at_surface, skip_emitters, PathSettings};
 use crate::bsdf::Bsdf;
 use crate::geometry::accel::{Crossing, CrossingList, Crossings};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
@@ -291,16 +291,17 @@ impl Gradient {
 }
 
 /// One radiance sample along the camera ray (o, d), the camera sitting in
-/// `scene.camera_medium`, and the sample of the derivative asked for (0 for none).
+/// `scene.camera_medium`, with the media's albedos of `settings`, and the sample of the
+/// derivative asked for (0 for none).
 pub fn sample(
     scene: &Scene,
+    settings: &PathSettings,
     o: Vec3A,
     d: Vec3A,
     tmax: f32,
     rng: &mut Pcg32,
-    gradient: Gradient,
 ) -> (Vec3, Vec3) {
-    let grad_medium = gradient.medium();
+    let grad_medium = settings.gradient.medium();
     let s = &scene.integrator;
     let n_emitters = scene.emitters.len();
     let mut result = Vec3::ZERO;
@@ -350,6 +351,8 @@ pub fn sample(
         let mut d_beta_before = Vec3::ZERO;
         if let Some(mi) = medium {
             let m: &HomogeneousMedium = &scene.media[mi as usize];
+            // The render's albedo of this medium (the scene's unless overridden).
+            let albedo = settings.albedo[mi as usize];
             let t = m.sample_distance(hero, rng.next_1d());
             // Within the clearance no surface can be hit: the cast's answer is known.
             // In a convex medium the distance to its one shape is a clearance too, and
@@ -394,13 +397,13 @@ pub fn sample(
                 // σ_t T / (σ_t T) = 1 for a collision (exactly, in floating point too):
                 // only α is left, r is unchanged, and no transmittance is needed.
                 if collided {
-                    d_beta_before = d_beta * m.albedo;
+                    d_beta_before = d_beta * albedo;
                     d_beta = if grad_medium == Some(mi) {
                         d_beta_before + beta
                     } else {
                         d_beta_before
                     };
-                    beta *= m.albedo;
+                    beta *= albedo;
                     in_medium = true;
                 }
             } else {
@@ -419,13 +422,13 @@ pub fn sample(
                         let p_hero = m.sigma_t[hero] * tr[hero];
                         let w = tr * m.sigma_t / p_hero;
                         // d(β w α)/dα = dβ w α + β w in the chosen medium.
-                        d_beta_before = d_beta * w * m.albedo;
+                        d_beta_before = d_beta * w * albedo;
                         d_beta = if grad_medium == Some(mi) {
                             d_beta_before + beta * w
                         } else {
                             d_beta_before
                         };
-                        beta *= w * m.albedo;
+                        beta *= w * albedo;
                         r_u *= w;
                         in_medium = true;
                     }
@@ -461,7 +464,7 @@ pub fn sample(
                 let x = medium_emitter_sample(scene, m, medium, p, ray_d, clearance - t, rng);
                 if x != Vec3::ZERO {
                     result += beta * x;
-                    d_result += x * match gradient {
+                    d_result += x * match settings.gradient {
                         Gradient::AlbedoIgnoringNeeVertex(_) => d_beta_before,
                         _ => d_beta,
                     };
@@ -838,6 +841,7 @@ mod tests {
         </scene>"#;
         let scene = load_xml("emitter_in_fog", xml);
         assert!(scene.camera_medium.is_some());
+        let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
         let le = Vec3::new(2.0, 3.0, 4.0);
         let o = Vec3A::ZERO;
         for x in [0.0f32, 0.1, -0.15] {
@@ -849,7 +853,11 @@ mod tests {
             let want = le * (-0.7 * t).exp();
             for k in 0..200 {
                 let mut rng = Pcg32::new(11, k);
-                let (l, _) = sample(&scene, o, d, f32::INFINITY, &mut rng, Gradient::None);
+                let settings = PathSettings {
+                    albedo: &albedo,
+                    gradient: Gradient::None,
+                };
+                let (l, _) = sample(&scene, &settings, o, d, f32::INFINITY, &mut rng);
                 assert!(
                     (l - want).abs().max_element() <= 1e-4 * want.max_element(),
                     "direction {d}, sample {k}: {l} vs {want}"

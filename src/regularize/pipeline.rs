@@ -21,7 +21,8 @@ use super::spatial::{self, BilateralParams};
 use super::temporal::{self, Reprojection};
 use crate::error::SceneError;
 use crate::integrator::volpath::Gradient;
-use crate::integrator::{render_with, Image, RenderOptions};
+use crate::integrator::{render, Image, RenderOptions};
+use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,9 +120,10 @@ fn bad(msg: String) -> SceneError {
     SceneError::new(None, msg)
 }
 
-/// Runs the method on `scene` (its camera is the target frame; it is restored before
-/// returning, as is the medium's albedo).
-pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, SceneError> {
+/// Runs the method on `scene` through `shot`, whose camera is the target frame. The
+/// sequence's frames are changed copies of the shot, and the source albedo an override
+/// of the render; the scene is only read.
+pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regularized, SceneError> {
     if scene.integrator.kind != IntegratorKind::Volpath {
         return Err(bad(
             "regularize needs the volpath integrator (the scene's integrator ignores media)".into(),
@@ -175,8 +177,8 @@ pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, Scen
         }
     }
 
-    let camera0 = scene.camera.clone();
-    let seed0 = scene.seed;
+    let camera0 = shot.camera.clone();
+    let seed0 = shot.seed;
     let frames = opts.path.frames(camera0.to_world, opts.frames);
     let n = frames.len();
     let fit_steps = matches!(opts.method, Method::Paper(CBeta::Fit { .. })) as u64;
@@ -191,24 +193,15 @@ pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, Scen
         ProgressBar::hidden()
     };
 
-    let render_frame = |scene: &mut Scene, to_world, seed, albedo: Vec3, spp: Option<u32>| {
-        scene.camera.to_world = to_world;
-        scene.seed = seed;
-        scene.media[m].albedo = albedo;
-        let saved_spp = scene.spp;
-        if let Some(s) = spp {
-            scene.spp = s;
+    let render_frame = |to_world, seed, albedo: Vec3, spp: Option<u32>| {
+        let mut frame = shot.with(spp.unwrap_or(shot.spp), seed);
+        frame.camera.to_world = to_world;
+        let options = RenderOptions {
+            gradient: Gradient::Albedo(opts.medium),
+            ..Default::default()
         }
-        let r = render_with(
-            scene,
-            &RenderOptions {
-                show_progress: false,
-                gradient: Gradient::Albedo(opts.medium),
-                ..Default::default()
-            },
-        );
-        scene.spp = saved_spp;
-        r
+        .with_albedo(scene, opts.medium, albedo);
+        render(scene, &frame, &options)
     };
 
     // Step 2: the sequence, earliest frame first.
@@ -219,7 +212,6 @@ pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, Scen
     for k in (0..n).rev() {
         bar.set_message(format!("frame k = {k}"));
         let r = render_frame(
-            scene,
             frames[k],
             seed0.wrapping_add(k as u64),
             albedos.source,
@@ -239,9 +231,7 @@ pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, Scen
 
     // Step 3: reproject, blend, filter — all in the target frame.
     let start = Instant::now();
-    scene.camera = camera0.clone();
-    scene.seed = seed0;
-    let features = spatial::first_hit_features(scene);
+    let features = spatial::first_hit_features(scene, shot);
     let (w, h) = (source.width, source.height);
     let maps: Vec<Reprojection> = (1..n)
         .map(|k| {
@@ -249,7 +239,7 @@ pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, Scen
             cam.to_world = frames[k];
             match opts.reproject {
                 Reproject::None => temporal::screen_shift(w, h, 0.0, 0.0),
-                Reproject::Exact => reproject::exact(scene, &features, &cam),
+                Reproject::Exact => reproject::exact(scene, shot, &features, &cam),
                 Reproject::Shift => {
                     let point = motion_point(&opts.path, &features, w, h);
                     match reproject::screen_motion(&camera0, &cam, point) {
@@ -281,7 +271,6 @@ pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, Scen
             let fit_albedo = albedos.source + (albedos.target - albedos.source) * at;
             // A seed no frame of the sequence uses.
             let cheap = render_frame(
-                scene,
                 camera0.to_world,
                 seed0.wrapping_add(n as u64 + 1_000_003),
                 fit_albedo,
@@ -304,11 +293,6 @@ pub fn regularize(scene: &mut Scene, opts: &Options) -> Result<Regularized, Scen
     let (predicted, fallbacks) = predictor.predict(&albedos, &source.pixels, &denoised);
     timings.denoise_and_predict += start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-
-    // Restore the scene as it came.
-    scene.camera = camera0;
-    scene.seed = seed0;
-    scene.media[m].albedo = target_albedo;
 
     let image = |pixels| Image {
         width: w,

@@ -15,6 +15,7 @@ use glam::{Vec2, Vec3A};
 use super::spatial::Features;
 use super::temporal::Reprojection;
 use crate::scene::camera::PerspectiveCamera;
+use crate::scene::shot::Shot;
 use crate::scene::Scene;
 
 /// A visibility ray must end within this relative distance of P to see P itself.
@@ -33,11 +34,16 @@ fn inside(p: Vec2, width: usize, height: usize) -> bool {
 
 /// The exact reprojection into the frame seen by `frame` (same film and crop window as
 /// the target frame, whose first hits are `target`).
-pub fn exact(scene: &Scene, target: &Features, frame: &PerspectiveCamera) -> Reprojection {
-    let (cw, ch) = scene.film.crop_size;
+pub fn exact(
+    scene: &Scene,
+    shot: &Shot,
+    target: &Features,
+    frame: &PerspectiveCamera,
+) -> Reprojection {
+    let (cw, ch) = shot.film.crop_size;
     let crop = Vec2::new(
-        scene.film.crop_offset.0 as f32,
-        scene.film.crop_offset.1 as f32,
+        shot.film.crop_offset.0 as f32,
+        shot.film.crop_offset.1 as f32,
     );
     let o = frame.origin();
     (0..target.depth.len())

@@ -15,6 +15,7 @@ use std::path::Path;
 use glam::{DVec3, Mat4, Vec3};
 
 use crate::error::{Loc, SceneError};
+use crate::scene::shot::Shot;
 use crate::scene::Scene;
 use crate::xml::transform;
 
@@ -129,9 +130,9 @@ impl CameraPath {
 }
 
 /// The first visible point through the film's centre: the default orbit centre.
-pub fn image_centre_point(scene: &Scene) -> Option<Vec3> {
-    let centre = glam::Vec2::new(scene.film.width as f32, scene.film.height as f32) * 0.5;
-    let ray = scene.camera.sample_ray(centre);
+pub fn image_centre_point(scene: &Scene, shot: &Shot) -> Option<Vec3> {
+    let centre = glam::Vec2::new(shot.film.width as f32, shot.film.height as f32) * 0.5;
+    let ray = shot.camera.sample_ray(centre);
     scene
         .intersect(ray.o, ray.d, ray.tmax)
         .map(|h| Vec3::from(h.p))

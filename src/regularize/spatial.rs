@@ -11,6 +11,7 @@
 
 use glam::{Vec2, Vec3, Vec3A};
 
+use crate::scene::shot::Shot;
 use crate::scene::Scene;
 
 /// Per pixel of the crop window: distance to the first surface along the ray through
@@ -27,8 +28,8 @@ pub struct Features {
 
 /// One ray per pixel centre (null boundaries count: they are what the camera sees of a
 /// medium).
-pub fn first_hit_features(scene: &Scene) -> Features {
-    let film = &scene.film;
+pub fn first_hit_features(scene: &Scene, shot: &Shot) -> Features {
+    let film = &shot.film;
     let (cw, ch) = film.crop_size;
     let (ox, oy) = film.crop_offset;
     let mut f = Features {
@@ -40,7 +41,7 @@ pub fn first_hit_features(scene: &Scene) -> Features {
     for y in 0..ch {
         for x in 0..cw {
             let pos = Vec2::new((x + ox) as f32 + 0.5, (y + oy) as f32 + 0.5);
-            let ray = scene.camera.sample_ray(pos);
+            let ray = shot.camera.sample_ray(pos);
             f.direction.push(Vec3::from(ray.d));
             match scene.intersect(ray.o, ray.d, ray.tmax) {
                 Some(h) => {

@@ -396,13 +396,12 @@ struct Fig7Data {
 /// table reference), predicted three ways.
 fn fig7(opts: &FigureOptions) -> Result<PathBuf> {
     let base = &opts.base;
-    let (mut scene, reference) = load_with_reference(base, "cube", "cube", &[])?;
+    let (scene, reference) = load_with_reference(base, "cube", "cube", &[])?;
     let medium = scene.medium_index(None).map_err(|e| anyhow!("{e}"))?;
-    scene.spp = opts.fig7_spp;
-    scene.seed = base.seed.wrapping_add(700);
+    let shot = scene.shot.with(opts.fig7_spp, base.seed.wrapping_add(700));
     let path = orbit_about_centre(base, &scene).context("Fig. 7: the image centre sees nothing")?;
     let ropts = sequence_options(base, medium, base.factor.unwrap_or(0.95), path);
-    let r = regularize::regularize(&mut scene, &ropts).map_err(|e| anyhow!("{e}"))?;
+    let r = regularize::regularize(&scene, &shot, &ropts).map_err(|e| anyhow!("{e}"))?;
     let (w, h) = (r.source.width, r.source.height);
     let predictors = [
         (

@@ -31,7 +31,7 @@ use super::metrics::mse_against;
 use super::mitsuba::{MitsubaRunner, Unavailable};
 use super::paper::table1_row;
 use crate::integrator::volpath::Gradient;
-use crate::integrator::{render_with, Image, RenderOptions};
+use crate::integrator::{render, Image, RenderOptions};
 use crate::regularize::sequence::{image_centre_point, CameraPath};
 use crate::regularize::spatial::BilateralParams;
 use crate::regularize::{self, CBeta, Reproject};
@@ -278,12 +278,12 @@ pub fn load_with_reference(
     if built.integrator.kind != IntegratorKind::Volpath {
         bail!("{}: the table needs a volpath scene", xml_path.display());
     }
-    if built.film.crop_size != (reference.meta.width, reference.meta.height) {
+    if built.shot.film.crop_size != (reference.meta.width, reference.meta.height) {
         bail!(
             "{}: renders {}x{}, its reference is {}x{}",
             xml_path.display(),
-            built.film.crop_size.0,
-            built.film.crop_size.1,
+            built.shot.film.crop_size.0,
+            built.shot.film.crop_size.1,
             reference.meta.width,
             reference.meta.height
         );
@@ -314,35 +314,23 @@ pub fn sequence_options(
 
 /// An orbit of the run's step about the first point the image centre sees.
 pub fn orbit_about_centre(opts: &TableOptions, scene: &Scene) -> Option<CameraPath> {
-    image_centre_point(scene).map(|target| CameraPath::Orbit {
+    image_centre_point(scene, &scene.shot).map(|target| CameraPath::Orbit {
         degrees_per_frame: opts.orbit_degrees,
         target,
     })
 }
 
-/// Seconds per spp of `scene` with `gradient`: renders at 1, 2, 4, … spp until one takes
-/// at least `min_seconds` (fixed costs per render are then a small part).
-fn seconds_per_spp(scene: &mut Scene, gradient: Gradient, min_seconds: f64, seed: u64) -> f64 {
-    let (spp0, seed0) = (scene.spp, scene.seed);
-    scene.seed = seed;
+/// Seconds per spp of `scene` rendered with `options`: renders at 1, 2, 4, … spp until
+/// one takes at least `min_seconds` (fixed costs per render are then a small part).
+fn seconds_per_spp(scene: &Scene, options: &RenderOptions, min_seconds: f64, seed: u64) -> f64 {
     let mut spp = 1u32;
-    let per_spp = loop {
-        scene.spp = spp;
-        let r = render_with(
-            scene,
-            &RenderOptions {
-                gradient,
-                ..Default::default()
-            },
-        );
+    loop {
+        let r = render(scene, &scene.shot.with(spp, seed), options);
         if r.stats.seconds >= min_seconds || spp >= 1 << 16 {
             break r.stats.seconds / spp as f64;
         }
         spp *= 2;
-    };
-    scene.spp = spp0;
-    scene.seed = seed0;
-    per_spp
+    }
 }
 
 fn spp_for(budget: f64, seconds_per_spp: f64) -> u32 {
@@ -413,7 +401,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             eprintln!("[{tag}] {msg}");
         }
     };
-    let (mut scene, reference) = load_with_reference(opts, name, &job.reference, &opts.params)?;
+    let (scene, reference) = load_with_reference(opts, name, &job.reference, &opts.params)?;
     let medium = scene
         .medium_index(None)
         .map_err(|e| anyhow!("{name}: {e}"))?;
@@ -437,11 +425,11 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
     }
 
     let seed = opts.seed;
-    let calibrate = |scene: &mut Scene, gradient: Gradient| -> Option<f64> {
+    let calibrate = |options: &RenderOptions| -> Option<f64> {
         match opts.budget {
             Budget::Seconds(b) => Some(seconds_per_spp(
-                scene,
-                gradient,
+                &scene,
+                options,
                 (b / 10.0).min(1.0),
                 seed.wrapping_add(1_000_000),
             )),
@@ -480,13 +468,15 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
     };
 
     // Plain volpath at the target albedo.
-    let spp = match calibrate(&mut scene, Gradient::None) {
+    let spp = match calibrate(&RenderOptions::default()) {
         Some(per_spp) => spp_for(budget_seconds(opts.budget), per_spp),
         None => budget_spp(opts.budget),
     };
-    scene.spp = spp;
-    scene.seed = seed;
-    let r = render_with(&scene, &RenderOptions::default());
+    let r = render(
+        &scene,
+        &scene.shot.with(spp, seed),
+        &RenderOptions::default(),
+    );
     push(Method::Volpath, &r.image, spp, r.stats.seconds, None)?;
 
     // The regularized method: temporal (the paper), then single-frame spatial.
@@ -505,9 +495,12 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
     };
     // Its frames render at the source albedo (shorter paths): calibrate there.
     let target_albedo = scene.media[medium as usize].albedo;
-    scene.media[medium as usize].albedo = target_albedo * factor;
-    let per_spp_gradient = calibrate(&mut scene, Gradient::Albedo(medium));
-    scene.media[medium as usize].albedo = target_albedo;
+    let at_source = RenderOptions {
+        gradient: Gradient::Albedo(medium),
+        ..Default::default()
+    }
+    .with_albedo(&scene, medium, target_albedo * factor);
+    let per_spp_gradient = calibrate(&at_source);
     for (method, ropts, seed_offset) in [
         (Method::Regularized, &temporal, 100u64),
         (Method::RegularizedSpatial, &spatial, 200u64),
@@ -516,19 +509,17 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             Some(per_spp) => {
                 // The denoising and prediction cost comes out of the frame's budget:
                 // measured on a 1-spp run of the same pipeline.
-                scene.spp = 1;
-                scene.seed = seed.wrapping_add(2_000_000);
-                let probe =
-                    regularize::regularize(&mut scene, ropts).map_err(|e| anyhow!("{e}"))?;
+                let probe_shot = scene.shot.with(1, seed.wrapping_add(2_000_000));
+                let probe = regularize::regularize(&scene, &probe_shot, ropts)
+                    .map_err(|e| anyhow!("{e}"))?;
                 let left = budget_seconds(opts.budget) - probe.timings.denoise_and_predict;
                 spp_for(left, per_spp)
             }
             None => budget_spp(opts.budget),
         };
-        scene.spp = spp;
-        scene.seed = seed.wrapping_add(seed_offset);
+        let shot = scene.shot.with(spp, seed.wrapping_add(seed_offset));
         let started = Instant::now();
-        let r = regularize::regularize(&mut scene, ropts).map_err(|e| anyhow!("{e}"))?;
+        let r = regularize::regularize(&scene, &shot, ropts).map_err(|e| anyhow!("{e}"))?;
         let sequence_seconds = started.elapsed().as_secs_f64();
         if r.fallbacks > 0 {
             run.notes.push(format!(

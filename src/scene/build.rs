@@ -10,6 +10,7 @@ use glam::{DMat4, DVec3, Mat4, Vec2, Vec3, Vec3A};
 use super::camera::{fov_x_degrees, PerspectiveCamera};
 use super::film::{Film, Rfilter};
 use super::props::Props;
+use super::shot::Shot;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
 use crate::bsdf::bitmap::{read_texels, Bitmap, FilterType, WrapMode};
 use crate::bsdf::dielectric::named_ior;
@@ -239,11 +240,13 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         bsphere,
         offset_scale,
         warnings: b.warnings,
-        camera,
         camera_medium,
-        film,
-        spp: overrides.spp.unwrap_or(spp),
-        seed: overrides.seed.unwrap_or(seed),
+        shot: Shot {
+            camera,
+            film,
+            spp: overrides.spp.unwrap_or(spp),
+            seed: overrides.seed.unwrap_or(seed),
+        },
         integrator,
         ray_log: None,
     })

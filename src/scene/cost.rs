@@ -7,6 +7,7 @@
 //! max_depth caps it. At albedo 1 and σ_t 1e4 over a unit scene, with rr_depth beyond
 //! reach and no max_depth, a path takes ~1e8 vertices: days for an image.
 
+use super::shot::Shot;
 use super::{IntegratorKind, Scene};
 
 /// Medium vertices per second a render thread manages, for the estimate (order of
@@ -43,11 +44,11 @@ pub fn expected_path_vertices(scene: &Scene) -> Option<(f64, String)> {
         .max_by(|a, b| a.0.total_cmp(&b.0))
 }
 
-/// The warning to print before rendering, if the estimate exceeds an hour.
-pub fn long_render_warning(scene: &Scene, threads: usize) -> Option<String> {
+/// The warning to print before rendering `shot`, if the estimate exceeds an hour.
+pub fn long_render_warning(scene: &Scene, shot: &Shot, threads: usize) -> Option<String> {
     let (vertices, name) = expected_path_vertices(scene)?;
-    let (w, h) = scene.film.crop_size;
-    let paths = (w * h) as f64 * scene.spp as f64;
+    let (w, h) = shot.film.crop_size;
+    let paths = (w * h) as f64 * shot.spp as f64;
     let seconds = paths * vertices / (VERTICES_PER_SECOND * threads.max(1) as f64);
     (seconds > WARN_SECONDS).then(|| {
         format!(

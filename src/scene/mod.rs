@@ -6,6 +6,7 @@ pub mod cost;
 pub mod film;
 pub mod props;
 pub mod ray_log;
+pub mod shot;
 pub mod spectrum;
 
 use glam::{Vec2, Vec3A};
@@ -19,9 +20,8 @@ use crate::geometry::convex::ConvexBoundary;
 use crate::geometry::shape::Geometry;
 use crate::geometry::Frame;
 use crate::medium::HomogeneousMedium;
-use camera::PerspectiveCamera;
-use film::Film;
 use ray_log::RayLog;
+use shot::Shot;
 
 pub use build::build_scene;
 
@@ -61,6 +61,7 @@ pub struct ShapeInfo {
     pub tangent_frame: bool,
 }
 
+/// The built scene: immutable once built; a render takes it with a [`Shot`].
 pub struct Scene {
     pub geometries: Vec<Geometry>,
     pub shapes: Vec<ShapeInfo>,
@@ -92,12 +93,13 @@ pub struct Scene {
     pub offset_scale: f32,
     /// What the loader accepted but the user should hear about (printed before rendering).
     pub warnings: Vec<String>,
-    pub camera: PerspectiveCamera,
-    /// The medium the sensor sits in (`<ref name="medium">` inside the sensor).
+    /// The medium the sensor sits in (`<ref name="medium">` inside the sensor). The
+    /// prepared data (clearance, convex media) depends on it, so it belongs to the
+    /// scene; a shot moves the camera within it.
     pub camera_medium: Option<u32>,
-    pub film: Film,
-    pub spp: u32,
-    pub seed: u64,
+    /// The shot the file describes: its sensor, film and sampler (with the command
+    /// line's spp, seed and crop). Renders take a shot, this one or a changed copy.
+    pub shot: Shot,
     pub integrator: IntegratorSettings,
     /// Where the casts into the scene are recorded, when asked for (`mediareg render
     /// --ray-log`, in a build with the `ray-log` feature; see `scene::ray_log`); None

@@ -297,7 +297,7 @@ mod tests {
     #[test]
     fn a_render_records_its_casts() {
         let scene = scene(true);
-        let rendered = crate::integrator::render_with(&scene, &Default::default());
+        let rendered = crate::integrator::render(&scene, &scene.shot, &Default::default());
         let samples = rendered.stats.samples as usize;
         let rays = scene.ray_log.unwrap().into_rays();
         let count = |k| rays.iter().filter(|r| r.kind == k).count();

@@ -91,7 +91,9 @@ pub fn render_chunks_crop(
     (0..k)
         .map(|i| {
             let s = load_seeded_crop(scene, params, spp, base_seed + i as u64, crop);
-            mediareg::integrator::render(&s, false).0.pixels
+            mediareg::integrator::render(&s, &s.shot, &Default::default())
+                .image
+                .pixels
         })
         .collect()
 }
@@ -114,7 +116,7 @@ pub fn render_gradient_chunks(
                 gradient,
                 ..Default::default()
             };
-            mediareg::integrator::render_with(&s, &opts)
+            mediareg::integrator::render(&s, &s.shot, &opts)
                 .gradient
                 .expect("a gradient was asked for")
                 .pixels
@@ -226,8 +228,8 @@ pub fn layout_crop(scene: &Path, params: &[(&str, &str)], crop: Option<[usize; 4
     let s =
         mediareg::load_scene(scene, &options(params), &overrides).unwrap_or_else(|e| panic!("{e}"));
     PixelLayout {
-        width: s.film.crop_size.0,
-        filter_radius: s.film.rfilter.radius(),
+        width: s.shot.film.crop_size.0,
+        filter_radius: s.shot.film.rfilter.radius(),
     }
 }
 
