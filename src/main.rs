@@ -11,6 +11,7 @@ use glam::Vec3;
 
 use mediareg::integrator::volpath::Gradient;
 use mediareg::integrator::Image;
+use mediareg::regularize::pipeline::PilotSize;
 use mediareg::regularize::sequence::{image_centre_point, CameraPath};
 use mediareg::regularize::spatial::BilateralParams;
 use mediareg::regularize::{self, CBeta, Method, Reproject};
@@ -157,9 +158,16 @@ enum Command {
         /// The medium (its XML id) to extrapolate; needed when the scene has several.
         #[arg(long, value_name = "ID")]
         medium: Option<String>,
-        /// Source albedo = factor × the scene's albedo (per channel).
-        #[arg(long, default_value_t = 0.95)]
-        factor: f32,
+        /// Source albedo = factor × the scene's albedo (per channel), or `auto` (the
+        /// difference predictor: chosen by a pilot). Default: auto with `--predict
+        /// difference`, 0.95 with the others.
+        #[arg(long, value_name = "F|auto")]
+        factor: Option<String>,
+        /// The pilot of `--factor auto`: renders per candidate factor, and their spp.
+        #[arg(long, default_value_t = 8)]
+        pilot_renders: usize,
+        #[arg(long, default_value_t = 1)]
+        pilot_spp: u32,
         /// c_β of the paper's predictor (0 < c_β ≤ σ_t α_s), or `fit` to fit it to a
         /// cheap render (--fit-spp, --fit-at).
         #[arg(long = "c-beta", default_value = "0.5", value_name = "C|fit")]
@@ -193,11 +201,15 @@ enum Command {
         /// The orbit's centre "x,y,z" (default: the first visible point at the image centre).
         #[arg(long, value_name = "X,Y,Z")]
         target: Option<String>,
-        /// Also filter the gradient spatially (joint bilateral, guided by the first hit).
-        #[arg(long)]
+        /// Also filter the gradient spatially (joint bilateral, guided by the first hit);
+        /// the default with `--predict difference`.
+        #[arg(long, conflicts_with = "no_spatial")]
         spatial: bool,
+        /// Filter the gradient over frames only (the default with the paper's predictors).
+        #[arg(long)]
+        no_spatial: bool,
         /// The prediction function.
-        #[arg(long, value_enum, default_value = "paper")]
+        #[arg(long, value_enum, default_value = "difference")]
         predict: PredictArg,
     },
     /// The paper's Table 1 on this machine: for each scene, at equal time (or spp), the
@@ -259,6 +271,8 @@ enum PredictArg {
     Paper,
     Linear,
     Loglinear,
+    /// R_s + the denoised difference R(α_t) − R(α_s) rendered in the same paths
+    Difference,
 }
 
 /// Set by the first Ctrl-C during `render`: the render stops after dropping the pass
@@ -537,7 +551,10 @@ fn run(cli: Cli) -> Result<()> {
             camera_path,
             target,
             spatial,
+            no_spatial,
             predict,
+            pilot_renders,
+            pilot_spp,
         } => {
             let (scene_data, out_exr) = prepare(&args)?;
             let medium = scene_data
@@ -561,6 +578,7 @@ fn run(cli: Cli) -> Result<()> {
                 PredictArg::Paper => Method::Paper(c_beta),
                 PredictArg::Linear => Method::Linear,
                 PredictArg::Loglinear => Method::LogLinear,
+                PredictArg::Difference => Method::Difference,
             };
             // The target frame: the file's shot, or the camera path's last transform.
             let mut shot = scene_data.shot.clone();
@@ -593,6 +611,32 @@ fn run(cli: Cli) -> Result<()> {
                     "note: no --orbit, --dolly or --camera-path: the {frames} frames share the sensor and differ only in their noise"
                 );
             }
+            // `auto` (the default with the difference predictor) leaves the factor to the
+            // pilot; the factor given is then unused.
+            let (factor, auto_factor) = match factor.as_deref() {
+                Some("auto") => (
+                    0.95,
+                    Some(PilotSize {
+                        chunks: pilot_renders,
+                        spp: pilot_spp,
+                    }),
+                ),
+                Some(f) => (
+                    f.parse::<f32>()
+                        .ok()
+                        .filter(|f| f.is_finite())
+                        .ok_or_else(|| anyhow!("--factor {f}: expected a number or `auto`"))?,
+                    None,
+                ),
+                None if method == Method::Difference => (
+                    0.95,
+                    Some(PilotSize {
+                        chunks: pilot_renders,
+                        spp: pilot_spp,
+                    }),
+                ),
+                None => (0.95, None),
+            };
             let opts = regularize::Options {
                 medium,
                 factor,
@@ -604,7 +648,9 @@ fn run(cli: Cli) -> Result<()> {
                     ReprojectArg::Shift => Reproject::Shift,
                     ReprojectArg::None => Reproject::None,
                 },
-                spatial: spatial.then(BilateralParams::default),
+                spatial: (spatial || (method == Method::Difference && !no_spatial))
+                    .then(BilateralParams::default),
+                auto_factor,
                 method,
                 show_progress: std::io::stderr().is_terminal(),
             };
@@ -643,6 +689,19 @@ fn run(cli: Cli) -> Result<()> {
                 eprintln!(
                     "warning: {} channel values could not be predicted (negative or not finite) and keep the source radiance",
                     r.fallbacks
+                );
+            }
+            if let Some(p) = &r.pilot {
+                let costs: Vec<String> = p
+                    .candidates
+                    .iter()
+                    .map(|c| format!("{}: {:.3e}", c.factor, c.cost))
+                    .collect();
+                println!(
+                    "factor {} chosen by the pilot in {:.2} s (error x seconds per spp: {})",
+                    p.factor,
+                    p.seconds,
+                    costs.join(", ")
                 );
             }
             let a = &r.albedos;

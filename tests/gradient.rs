@@ -255,3 +255,54 @@ fn spatial_denoising_lowers_the_gradient_error() {
         "raw {raw:.3e}, denoised {filtered:.3e}"
     );
 }
+
+/// R(α_t) from paths rendered at α_s: each render's R_s + D (`Gradient::Difference`,
+/// D = f ((α_t / α_s)^k − 1) per path) at α_s = 0.9 α_t.
+fn reweighted_chunks(target: f32, seed: u64) -> Vec<Vec<[f32; 3]>> {
+    let scene = root().join("mitsuba_scenes/medium_cube.xml");
+    (0..16u64)
+        .map(|i| {
+            let s = load_seeded(&scene, &[("albedo", "0.855")], 128, seed + i);
+            let opts = RenderOptions {
+                gradient: Gradient::Difference {
+                    medium: 0,
+                    target: glam::Vec3::splat(target),
+                },
+                ..Default::default()
+            };
+            let r = mediareg::integrator::render(&s, &s.shot, &opts);
+            let d = r.gradient.expect("a difference was asked for").pixels;
+            r.image
+                .pixels
+                .iter()
+                .zip(&d)
+                .map(|(a, b)| [0, 1, 2].map(|c| a[c] + b[c]))
+                .collect()
+        })
+        .collect()
+}
+
+fn check_reweighted(target: f32, seed: u64) -> Comparison {
+    let scene = root().join("mitsuba_scenes/medium_cube.xml");
+    let r = reference("medium_cube", &scene);
+    let layout = layout(&scene, &[]);
+    let ours = Estimate::from_chunks(&reweighted_chunks(target, seed), layout);
+    let c = compare(&ours, &r.estimate, layout, ALPHA, FALSE_ALARM);
+    println!("R_s + D at 0.855 -> {target}: {c}");
+    c
+}
+
+/// The difference is unbiased: R_s + D rendered at α_s = 0.855 matches Mitsuba 3's
+/// image at α_t = 0.95.
+#[test]
+fn difference_from_a_lower_albedo_matches_mitsuba_at_the_target() {
+    let c = check_reweighted(0.95, 51);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: extrapolating to 0.94 instead must fail against the image at 0.95.
+#[test]
+fn difference_to_the_wrong_target_is_detected() {
+    let c = check_reweighted(0.94, 52);
+    assert!(!c.passed, "a 1% wrong target went undetected: {c}");
+}

@@ -207,8 +207,23 @@ fn command_writes_every_output_and_refuses_bad_parameters() {
             assert!(p.is_file(), "{} missing", p.display());
         }
     }
+    // The default: the difference predictor, its factor chosen by the pilot.
     assert!(
-        stdout.contains("0.9025") && stdout.contains("3 frames"),
+        stdout.contains("chosen by the pilot") && stdout.contains("3 frames"),
+        "{stdout}"
+    );
+    // The paper's predictor at its default factor 0.95.
+    let stdout = run_ok(&[
+        "--predict",
+        "paper",
+        "--frames",
+        "2",
+        "--no-png",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("0.9025") && !stdout.contains("pilot"),
         "{stdout}"
     );
 
@@ -223,6 +238,8 @@ fn command_writes_every_output_and_refuses_bad_parameters() {
     let stdout = run_ok(&[
         "--camera-path",
         path_file.to_str().unwrap(),
+        "--predict",
+        "paper",
         "--c-beta",
         "fit",
         "--no-png",
@@ -236,13 +253,18 @@ fn command_writes_every_output_and_refuses_bad_parameters() {
 
     let bad = dir.join("bad.exr");
     for (extra, want) in [
-        (vec!["--c-beta", "20"], "c_beta = 20"),
-        (vec!["--c-beta", "x"], "--c-beta x"),
+        (vec!["--predict", "paper", "--c-beta", "20"], "c_beta = 20"),
+        (vec!["--predict", "paper", "--c-beta", "x"], "--c-beta x"),
+        (vec!["--predict", "paper", "--factor", "auto"], "--factor auto"),
+        (vec!["--factor", "x"], "--factor x"),
         (vec!["--factor", "0"], "--factor 0"),
         (vec!["--frames", "0"], "--frames 0"),
         (vec!["--camera-path", "/nonexistent/path.txt"], "path.txt"),
         (vec!["--orbit", "1", "--target", "1,2"], "--target 1,2"),
-        (vec!["--factor", "1", "--c-beta", "fit"], "nothing to fit"),
+        (
+            vec!["--predict", "paper", "--factor", "1", "--c-beta", "fit"],
+            "nothing to fit",
+        ),
     ] {
         let mut args = vec![
             scene,

@@ -52,7 +52,8 @@ fn table_files_agree_with_the_images_they_name() {
         [
             Method::Volpath,
             Method::Regularized,
-            Method::RegularizedSpatial
+            Method::RegularizedSpatial,
+            Method::RegularizedAuto
         ]
     );
     for r in &rows {

@@ -279,13 +279,36 @@ pub enum Gradient {
     /// the vertex they are made from (k − 1 instead of k).
     #[doc(hidden)]
     AlbedoIgnoringNeeVertex(u32),
+    /// R(α_t) − R(α) of this medium, α the albedo rendered with and α_t `target`, in the
+    /// same paths: each path's contribution f carries α^k for its k scattering vertices
+    /// in the medium and its sampling does not depend on α, so f · ((α_t / α)^k − 1) is
+    /// an unbiased sample of the difference (Eq. 6–8 integrated from α to α_t instead of
+    /// differentiated; Russian roulette detached as for the derivative).
+    Difference { medium: u32, target: Vec3 },
 }
 
 impl Gradient {
     fn medium(self) -> Option<u32> {
         match self {
             Gradient::None => None,
-            Gradient::Albedo(m) | Gradient::AlbedoIgnoringNeeVertex(m) => Some(m),
+            Gradient::Albedo(m)
+            | Gradient::AlbedoIgnoringNeeVertex(m)
+            | Gradient::Difference { medium: m, .. } => Some(m),
+        }
+    }
+
+    /// How a scattering vertex in medium `mi` of albedo `albedo` updates dβ, the
+    /// derivative's (or the difference's) weight: dβ' = w (dβ · a + β · b) with (a, b)
+    /// returned here and w the flight's weight. The derivative of β w α: (α, 1) in the
+    /// chosen medium. The difference β_t − β with β_t = β (α_t / α)^k: β_t' − β' =
+    /// w (dβ α_t + β (α_t − α)), so (α_t, α_t − α), without dividing by α. In other
+    /// media α scales both: (α, 0).
+    #[inline]
+    fn vertex_factors(self, mi: u32, albedo: Vec3) -> (Vec3, Vec3) {
+        match self {
+            Gradient::Difference { medium, target } if medium == mi => (target, target - albedo),
+            g if g.medium() == Some(mi) => (albedo, Vec3::ONE),
+            _ => (albedo, Vec3::ZERO),
         }
     }
 }
@@ -301,7 +324,6 @@ pub fn sample(
     tmax: f32,
     rng: &mut Pcg32,
 ) -> (Vec3, Vec3) {
-    let grad_medium = settings.gradient.medium();
     let s = &scene.integrator;
     let n_emitters = scene.emitters.len();
     let mut result = Vec3::ZERO;
@@ -398,11 +420,8 @@ pub fn sample(
                 // only α is left, r is unchanged, and no transmittance is needed.
                 if collided {
                     d_beta_before = d_beta * albedo;
-                    d_beta = if grad_medium == Some(mi) {
-                        d_beta_before + beta
-                    } else {
-                        d_beta_before
-                    };
+                    let (a, b) = settings.gradient.vertex_factors(mi, albedo);
+                    d_beta = d_beta * a + beta * b;
                     beta *= albedo;
                     in_medium = true;
                 }
@@ -423,11 +442,8 @@ pub fn sample(
                         let w = tr * m.sigma_t / p_hero;
                         // d(β w α)/dα = dβ w α + β w in the chosen medium.
                         d_beta_before = d_beta * w * albedo;
-                        d_beta = if grad_medium == Some(mi) {
-                            d_beta_before + beta * w
-                        } else {
-                            d_beta_before
-                        };
+                        let (a, b) = settings.gradient.vertex_factors(mi, albedo);
+                        d_beta = d_beta * w * a + beta * w * b;
                         beta *= w * albedo;
                         r_u *= w;
                         in_medium = true;

@@ -5,9 +5,11 @@
 //!
 //! `pipeline` runs the whole method; the steps are `sequence` (camera paths),
 //! `reproject` and `temporal` (Eq. 9–10), `spatial` (a still-image denoiser), `predict`
-//! (Eq. 11–12) and `fit` (c_β without a reference).
+//! (Eq. 11–12), `fit` (c_β without a reference) and `pilot` (the source factor without a
+//! reference, for the difference predictor).
 
 pub mod fit;
+pub mod pilot;
 pub mod pipeline;
 pub mod predict;
 pub mod reproject;

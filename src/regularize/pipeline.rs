@@ -14,6 +14,7 @@ use glam::{Vec3, Vec3A};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::fit::fit_c_beta;
+use super::pilot::{self, Pilot};
 use super::predict::{Albedos, Predictor};
 use super::reproject;
 use super::sequence::CameraPath;
@@ -50,6 +51,9 @@ pub enum Method {
     Paper(CBeta),
     Linear,
     LogLinear,
+    /// The frames render the difference R(α_t) − R(α_s) in their paths instead of the
+    /// derivative, which is denoised the same way and added to R_s.
+    Difference,
 }
 
 #[derive(Clone, Debug)]
@@ -64,7 +68,23 @@ pub struct Options {
     pub reproject: Reproject,
     pub spatial: Option<BilateralParams>,
     pub method: Method,
+    /// Choose `factor` with a pilot (`pilot`; the difference predictor only): `chunks`
+    /// renders of `spp` samples at each candidate factor.
+    pub auto_factor: Option<PilotSize>,
     pub show_progress: bool,
+}
+
+/// The pilot's size: `chunks` ≥ 2 renders of `spp` samples per candidate factor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PilotSize {
+    pub chunks: usize,
+    pub spp: u32,
+}
+
+impl Default for PilotSize {
+    fn default() -> Self {
+        PilotSize { chunks: 8, spp: 1 }
+    }
 }
 
 impl Default for Options {
@@ -78,6 +98,7 @@ impl Default for Options {
             reproject: Reproject::Exact,
             spatial: None,
             method: Method::Paper(CBeta::Fixed(0.5)),
+            auto_factor: None,
             show_progress: false,
         }
     }
@@ -94,6 +115,8 @@ pub struct Timings {
     pub fit: f64,
     /// Reprojection, blending, spatial filter and prediction.
     pub denoise_and_predict: f64,
+    /// The pilot that chose the factor (0 without one).
+    pub pilot: f64,
 }
 
 pub struct Regularized {
@@ -114,6 +137,8 @@ pub struct Regularized {
     pub timings: Timings,
     /// Samples or gradient values that were NaN or Inf and were dropped.
     pub invalid_samples: u64,
+    /// The pilot's measurements, where it chose the factor.
+    pub pilot: Option<Pilot>,
 }
 
 fn bad(msg: String) -> SceneError {
@@ -133,6 +158,19 @@ pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regulari
     if m >= scene.media.len() {
         return Err(bad(format!("no medium #{m}")));
     }
+    if opts.auto_factor.is_some() && opts.method != Method::Difference {
+        return Err(bad(
+            "--factor auto chooses the factor for the difference predictor (--predict difference); give the factor for the others".into(),
+        ));
+    }
+    if let Some(p) = opts.auto_factor {
+        if p.chunks < 2 || p.spp == 0 {
+            return Err(bad(format!(
+                "the factor's pilot needs at least 2 renders of at least 1 spp (got {} of {})",
+                p.chunks, p.spp
+            )));
+        }
+    }
     if !(opts.factor > 0.0 && opts.factor <= 1.0) {
         return Err(bad(format!(
             "--factor {} must lie in (0, 1]: the source albedo is factor × the scene's",
@@ -147,8 +185,25 @@ pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regulari
     }
     let target_albedo = scene.media[m].albedo;
     let sigma_t = scene.media[m].sigma_t;
+    // The first visible point of each pixel: the guides of the spatial filter and of
+    // the exact reprojection (noise-free, one ray per pixel).
+    let features = spatial::first_hit_features(scene, shot);
+    let pilot = opts.auto_factor.map(|size| {
+        pilot::choose_factor(
+            scene,
+            shot,
+            opts.medium,
+            opts.frames,
+            opts.w_a,
+            opts.spatial.as_ref(),
+            &features,
+            size.chunks,
+            size.spp,
+        )
+    });
+    let factor = pilot.as_ref().map_or(opts.factor, |p| p.factor);
     let albedos = Albedos {
-        source: target_albedo * opts.factor,
+        source: target_albedo * factor,
         target: target_albedo,
         sigma_t,
     };
@@ -157,6 +212,7 @@ pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regulari
         Method::Paper(CBeta::Fit { .. }) => None,
         Method::Linear => Some(Predictor::Linear),
         Method::LogLinear => Some(Predictor::LogLinear),
+        Method::Difference => Some(Predictor::Difference),
     };
     match predictor {
         Some(p) => p.validate(&albedos)?,
@@ -193,11 +249,19 @@ pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regulari
         ProgressBar::hidden()
     };
 
+    // What the frames render beside the radiance: the derivative, or the difference.
+    let gradient = match opts.method {
+        Method::Difference => Gradient::Difference {
+            medium: opts.medium,
+            target: albedos.target,
+        },
+        _ => Gradient::Albedo(opts.medium),
+    };
     let render_frame = |to_world, seed, albedo: Vec3, spp: Option<u32>| {
         let mut frame = shot.with(spp.unwrap_or(shot.spp), seed);
         frame.camera.to_world = to_world;
         let options = RenderOptions {
-            gradient: Gradient::Albedo(opts.medium),
+            gradient,
             ..Default::default()
         }
         .with_albedo(scene, opts.medium, albedo);
@@ -205,7 +269,10 @@ pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regulari
     };
 
     // Step 2: the sequence, earliest frame first.
-    let mut timings = Timings::default();
+    let mut timings = Timings {
+        pilot: pilot.as_ref().map_or(0.0, |p| p.seconds),
+        ..Default::default()
+    };
     let mut gradients: Vec<Image> = Vec::with_capacity(n);
     let mut source = None;
     let mut invalid_samples = 0;
@@ -231,7 +298,6 @@ pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regulari
 
     // Step 3: reproject, blend, filter — all in the target frame.
     let start = Instant::now();
-    let features = spatial::first_hit_features(scene, shot);
     let (w, h) = (source.width, source.height);
     let maps: Vec<Reprojection> = (1..n)
         .map(|k| {
@@ -315,6 +381,7 @@ pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regulari
         frames_rendered: n,
         timings,
         invalid_samples,
+        pilot,
     })
 }
 

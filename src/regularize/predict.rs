@@ -24,6 +24,10 @@ pub enum Predictor {
     },
     Linear,
     LogLinear,
+    /// R_t = R_s + D, D the (denoised) difference R(α_t) − R(α_s) rendered in the same
+    /// paths (`Gradient::Difference`): no model of R(α) and so no bias of one; only the
+    /// denoising of D can bias it.
+    Difference,
 }
 
 /// Per-channel albedos and extinction of the medium being extrapolated.
@@ -74,6 +78,8 @@ impl Predictor {
         }
         let r_t = match *self {
             Predictor::Linear => r_s + g_s * delta,
+            // Here g_s is the difference itself.
+            Predictor::Difference => r_s + g_s,
             Predictor::LogLinear => r_s * (g_s / r_s * delta).exp(),
             Predictor::Paper { c_beta } => {
                 let beta = c_beta as f64 / (sigma_t as f64 * alpha_s as f64);

@@ -153,7 +153,7 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
             r.mse_corrected
         )?;
     }
-    html.push_str("</table>\n<table><tr><th>scene</th><th>paper: ours / PT</th><th>here: regularized / volpath (× time)</th><th>regularized_spatial / volpath (× time)</th><th>mitsuba_volpath / volpath (× time)</th></tr>\n");
+    html.push_str("</table>\n<table><tr><th>scene</th><th>paper: ours / PT</th><th>here: regularized / volpath (× time)</th><th>regularized_spatial / volpath (× time)</th><th>regularized_auto / volpath (× time)</th><th>mitsuba_volpath / volpath (× time)</th></tr>\n");
     let mut scenes: Vec<&str> = rows.iter().map(|r| r.scene.as_str()).collect();
     scenes.dedup();
     for s in &scenes {

@@ -51,7 +51,7 @@ pub fn ratio_cells(rows: &[Row], r: &Row) -> [String; 2] {
 
 /// The paper comparison's cells for a scene: the paper's ours/PT, then regularized,
 /// regularized_spatial and mitsuba_volpath over volpath, each "raw (time-adjusted)".
-pub fn paper_cells(rows: &[Row], scene: &str) -> [String; 4] {
+pub fn paper_cells(rows: &[Row], scene: &str) -> [String; 5] {
     let f = |m| match (
         ratio_to_volpath(rows, scene, m),
         time_adjusted_ratio(rows, scene, m),
@@ -71,6 +71,7 @@ pub fn paper_cells(rows: &[Row], scene: &str) -> [String; 4] {
         paper,
         f(Method::Regularized),
         f(Method::RegularizedSpatial),
+        f(Method::RegularizedAuto),
         f(Method::MitsubaVolpath),
     ]
 }
@@ -225,14 +226,17 @@ fn markdown(info: &RunInfo, rows: &[Row]) -> Result<String> {
     )?;
     writeln!(
         md,
-        "| scene | paper: ours / PT | here: regularized / volpath (× time) | regularized_spatial / volpath (× time) | mitsuba_volpath / volpath (× time) |"
+        "| scene | paper: ours / PT | here: regularized / volpath (× time) | regularized_spatial / volpath (× time) | regularized_auto / volpath (× time) | mitsuba_volpath / volpath (× time) |"
     )?;
-    writeln!(md, "|---|---:|---:|---:|---:|")?;
+    writeln!(md, "|---|---:|---:|---:|---:|---:|")?;
     let mut scenes: Vec<&str> = rows.iter().map(|r| r.scene.as_str()).collect();
     scenes.dedup();
     for s in scenes {
-        let [paper, reg, spatial, mitsuba] = paper_cells(rows, s);
-        writeln!(md, "| {s} | {paper} | {reg} | {spatial} | {mitsuba} |")?;
+        let [paper, reg, spatial, auto, mitsuba] = paper_cells(rows, s);
+        writeln!(
+            md,
+            "| {s} | {paper} | {reg} | {spatial} | {auto} | {mitsuba} |"
+        )?;
     }
 
     writeln!(md, "\n## References\n")?;

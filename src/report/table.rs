@@ -32,6 +32,7 @@ use super::mitsuba::{MitsubaRunner, Unavailable};
 use super::paper::table1_row;
 use crate::integrator::volpath::Gradient;
 use crate::integrator::{render, Image, RenderOptions};
+use crate::regularize::pipeline::PilotSize;
 use crate::regularize::sequence::{image_centre_point, CameraPath};
 use crate::regularize::spatial::BilateralParams;
 use crate::regularize::{self, CBeta, Reproject};
@@ -79,6 +80,9 @@ pub struct TableOptions {
 pub enum Method {
     Regularized,
     RegularizedSpatial,
+    /// The difference predictor with the factor chosen by the pilot, temporal and
+    /// spatial filtering (what `mediareg regularize` does by default).
+    RegularizedAuto,
     Volpath,
     MitsubaVolpath,
 }
@@ -88,6 +92,7 @@ impl Method {
         match self {
             Method::Regularized => "regularized",
             Method::RegularizedSpatial => "regularized_spatial",
+            Method::RegularizedAuto => "regularized_auto",
             Method::Volpath => "volpath",
             Method::MitsubaVolpath => "mitsuba_volpath",
         }
@@ -308,6 +313,7 @@ pub fn sequence_options(
         reproject: Reproject::Exact,
         spatial: None,
         method: regularize::Method::Paper(CBeta::Fixed(opts.c_beta)),
+        auto_factor: None,
         show_progress: false,
     }
 }
@@ -493,6 +499,12 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         spatial: Some(BilateralParams::default()),
         ..temporal.clone()
     };
+    let auto = regularize::Options {
+        method: regularize::Method::Difference,
+        auto_factor: Some(PilotSize::default()),
+        spatial: Some(BilateralParams::default()),
+        ..temporal.clone()
+    };
     // Its frames render at the source albedo (shorter paths): calibrate there.
     let target_albedo = scene.media[medium as usize].albedo;
     let at_source = RenderOptions {
@@ -504,6 +516,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
     for (method, ropts, seed_offset) in [
         (Method::Regularized, &temporal, 100u64),
         (Method::RegularizedSpatial, &spatial, 200u64),
+        (Method::RegularizedAuto, &auto, 300u64),
     ] {
         let spp = match per_spp_gradient {
             Some(per_spp) => {
@@ -512,7 +525,9 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
                 let probe_shot = scene.shot.with(1, seed.wrapping_add(2_000_000));
                 let probe = regularize::regularize(&scene, &probe_shot, ropts)
                     .map_err(|e| anyhow!("{e}"))?;
-                let left = budget_seconds(opts.budget) - probe.timings.denoise_and_predict;
+                let left = budget_seconds(opts.budget)
+                    - probe.timings.denoise_and_predict
+                    - probe.timings.pilot / probe.frames_rendered as f64;
                 spp_for(left, per_spp)
             }
             None => budget_spp(opts.budget),
@@ -528,9 +543,13 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
                 r.fallbacks
             ));
         }
-        let seconds = r.timings.target_frame + r.timings.denoise_and_predict;
+        // One frame of the sequence, and the pilot's share of it (a pilot serves the
+        // whole sequence).
+        let seconds = r.timings.target_frame
+            + r.timings.denoise_and_predict
+            + r.timings.pilot / r.frames_rendered as f64;
         let sequence =
-            (method == Method::Regularized).then_some((r.frames_rendered, sequence_seconds));
+            (method != Method::RegularizedSpatial).then_some((r.frames_rendered, sequence_seconds));
         push(method, &r.predicted, spp, seconds, sequence)?;
     }
 
