@@ -695,10 +695,10 @@ fn run(cli: Cli) -> Result<()> {
                 let costs: Vec<String> = p
                     .candidates
                     .iter()
-                    .map(|c| format!("{}: {:.3e}", c.factor, c.cost))
+                    .map(|c| format!("{}: {:.3e}", c.factor, c.cost.iter().sum::<f64>()))
                     .collect();
                 println!(
-                    "factor {} chosen by the pilot in {:.2} s (error x seconds per spp: {})",
+                    "factor {:?} (R, G, B) chosen by the pilot in {:.2} s (error x seconds per spp, summed over channels: {})",
                     p.factor,
                     p.seconds,
                     costs.join(", ")

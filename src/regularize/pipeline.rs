@@ -201,7 +201,9 @@ pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regulari
             size.spp,
         )
     });
-    let factor = pilot.as_ref().map_or(opts.factor, |p| p.factor);
+    let factor = pilot
+        .as_ref()
+        .map_or(Vec3::splat(opts.factor), |p| Vec3::from(p.factor));
     let albedos = Albedos {
         source: target_albedo * factor,
         target: target_albedo,

@@ -536,6 +536,14 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         let started = Instant::now();
         let r = regularize::regularize(&scene, &shot, ropts).map_err(|e| anyhow!("{e}"))?;
         let sequence_seconds = started.elapsed().as_secs_f64();
+        if let Some(p) = &r.pilot {
+            run.notes.push(format!(
+                "{name} {}: the pilot chose the factors {:?} (R, G, B) in {:.1} s",
+                method.as_str(),
+                p.factor,
+                p.seconds
+            ));
+        }
         if r.fallbacks > 0 {
             run.notes.push(format!(
                 "{name} {}: {} channel values could not be predicted and keep the source radiance",
