@@ -3,9 +3,11 @@
 //! Each scene: 8 independent mediareg renders (different seeds) give a per-pixel mean and
 //! variance of the mean (7 dof); the reference gives the same from its 8 chunks. The
 //! comparison (`mediareg::image::stats::compare`) fails on a global bias of the image
-//! mean or on more |z| outliers than Binomial(N, α) allows; α = 1e-3 per value, and the
-//! probability that two renders of the same image fail is below 1e-6. The power test
-//! shows the same comparison catches a 2% change of a reflectance.
+//! mean or on more |z| outliers than Binomial(N, α) allows; α = 1e-3 per pixel, stated
+//! false-alarm probability 1e-6. Measured (tests/false_alarm.rs): no failure in 40,000
+//! same-image comparisons each of cbox with the box and the gaussian filter and of the
+//! medium cube, a rate below 7.5e-5 at 95%. The power tests show the same comparison
+//! catches a 2% change of a reflectance.
 
 mod common;
 

@@ -255,7 +255,10 @@ fn command_writes_every_output_and_refuses_bad_parameters() {
     for (extra, want) in [
         (vec!["--predict", "paper", "--c-beta", "20"], "c_beta = 20"),
         (vec!["--predict", "paper", "--c-beta", "x"], "--c-beta x"),
-        (vec!["--predict", "paper", "--factor", "auto"], "--factor auto"),
+        (
+            vec!["--predict", "paper", "--factor", "auto"],
+            "--factor auto",
+        ),
         (vec!["--factor", "x"], "--factor x"),
         (vec!["--factor", "0"], "--factor 0"),
         (vec!["--frames", "0"], "--frames 0"),

@@ -5,7 +5,9 @@
 //! mean; with the reference's 32 chunks, z is t-distributed with ν = 15 (the smaller
 //! side). `mediareg::image::stats::compare` fails on a global bias of the image mean, on
 //! more |z| outliers among pixels (α = 1e-3) or among 8×8 blocks (α = 1e-2) than a
-//! Binomial allows: two renders of the same image fail with probability below 1e-6.
+//! Binomial allows, stated false-alarm probability 1e-6. Measured (tests/false_alarm.rs,
+//! the medium cube among others): no failure in 40,000 same-image comparisons, a rate
+//! below 7.5e-5 at 95%.
 //!
 //! Chunks of 128 spp: the t-test needs chunk means close to normal. Media with small
 //! bright lights (seen through glass or fog) have very skewed per-sample distributions;
