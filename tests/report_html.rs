@@ -67,17 +67,17 @@ fn a_generated_report_shows_every_image() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let html = std::fs::read_to_string(&page).unwrap();
-    // The reference, three methods and their three error maps.
-    assert_eq!(html.matches("<img ").count(), 7);
+    // The reference, four methods and their four error maps.
+    assert_eq!(html.matches("<img ").count(), 9);
     if let Some((ok, all)) = images_loaded(&page) {
-        assert_eq!((ok, all), (7, 7));
+        assert_eq!((ok, all), (9, 9));
     }
     // A broken link is caught: remove one image and look again.
     std::fs::remove_file(table.join("cube_volpath_error.png")).unwrap();
     if let Some((ok, all)) = images_loaded(&page) {
         assert_eq!(
             (ok, all),
-            (6, 7),
+            (8, 9),
             "a missing image must count as not loaded"
         );
     }
@@ -89,8 +89,8 @@ fn the_committed_report_shows_every_image_and_plot() {
     let page = common::root().join("reports/index.html");
     let html = std::fs::read_to_string(&page).expect("reports/index.html is committed");
     let n = html.matches("<img ").count();
-    // Three scenes × (reference + 4 methods + 4 error maps), and the plots.
-    assert!(n >= 3 * 9 + 3, "only {n} images on the page");
+    // Three scenes × (reference + 5 methods + 5 error maps), and the plots.
+    assert!(n >= 3 * 11 + 3, "only {n} images on the page");
     if let Some((ok, all)) = images_loaded(&page) {
         assert_eq!(
             (ok, all),
