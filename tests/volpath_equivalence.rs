@@ -182,6 +182,27 @@ fn furnace_matches_mitsuba() {
     assert!(c.passed, "{c}");
 }
 
+/// Power: a furnace that absorbs 1% (albedo 0.99; an edited copy) must fail.
+#[test]
+fn furnace_comparison_detects_one_percent_absorption() {
+    let scene = root().join("mitsuba_scenes/furnace.xml");
+    let c = common::check_edited_against_reference(
+        "furnace",
+        &scene,
+        scene.parent().unwrap(),
+        &[],
+        &[(
+            "<float name=\"albedo\" value=\"1\"/>",
+            "<float name=\"albedo\" value=\"0.99\"/>",
+        )],
+        None,
+        CHUNKS,
+        SPP,
+        64,
+    );
+    assert!(!c.passed, "1% absorption went undetected: {c}");
+}
+
 /// The white furnace against its exact answer: 1 in every pixel and channel. The exact
 /// side has zero variance, so the test is as strict as our own noise allows.
 #[test]
