@@ -1,12 +1,14 @@
 //! The whole method, as `mediareg regularize` runs it:
 //!
-//! 1. set the medium's albedo to α_s = factor · α_t (α_t from the scene file);
-//! 2. render the camera sequence at α_s, radiance and d(radiance)/d(albedo), frame k with
-//!    seed + k so that frames have independent noise;
+//! 1. choose α_s = factor · α_t (α_t from the scene file; the factor given, or chosen per
+//!    channel by `pilot`), rendered as an albedo override (the scene is only read);
+//! 2. render the camera sequence at α_s, radiance and d(radiance)/d(albedo) (or, for the
+//!    difference predictor, R(α_t) − R(α_s)), frame k with seed + k so that frames have
+//!    independent noise;
 //! 3. reproject the earlier frames' gradients into the target frame and blend them
 //!    (Eq. 10), then optionally filter spatially; the radiance is never denoised;
-//! 4. predict the target-albedo image (Eq. 11–12 or a baseline), with c_β given or
-//!    fitted to a cheap render (`fit`).
+//! 4. predict the target-albedo image (Eq. 11–12, a baseline, or R_s + the difference),
+//!    with c_β given or fitted to a cheap render (`fit`).
 
 use std::time::Instant;
 
