@@ -613,14 +613,12 @@ fn run(cli: Cli) -> Result<()> {
             }
             // `auto` (the default with the difference predictor) leaves the factor to the
             // pilot; the factor given is then unused.
+            let pilot = PilotSize {
+                chunks: pilot_renders,
+                spp: pilot_spp,
+            };
             let (factor, auto_factor) = match factor.as_deref() {
-                Some("auto") => (
-                    0.95,
-                    Some(PilotSize {
-                        chunks: pilot_renders,
-                        spp: pilot_spp,
-                    }),
-                ),
+                Some("auto") => (0.95, Some(pilot)),
                 Some(f) => (
                     f.parse::<f32>()
                         .ok()
@@ -628,14 +626,7 @@ fn run(cli: Cli) -> Result<()> {
                         .ok_or_else(|| anyhow!("--factor {f}: expected a number or `auto`"))?,
                     None,
                 ),
-                None if method == Method::Difference => (
-                    0.95,
-                    Some(PilotSize {
-                        chunks: pilot_renders,
-                        spp: pilot_spp,
-                    }),
-                ),
-                None => (0.95, None),
+                None => (0.95, (method == Method::Difference).then_some(pilot)),
             };
             let opts = regularize::Options {
                 medium,

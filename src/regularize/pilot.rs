@@ -23,6 +23,7 @@
 //! factors the estimate is optimistic; the candidates stop at 0.7 for that reason).
 
 use super::spatial::{self, BilateralParams, Features};
+use crate::image::stats::{Estimate, PixelLayout};
 use crate::integrator::volpath::Gradient;
 use crate::integrator::{render, RenderOptions};
 use crate::scene::shot::Shot;
@@ -94,7 +95,7 @@ pub fn choose_factor(
         }
         .with_albedo(scene, medium, target * factor);
         let mut seconds = 0.0;
-        let renders: Vec<_> = (0..chunks)
+        let (sources, differences): (Vec<_>, Vec<_>) = (0..chunks)
             .map(|k| {
                 // Seeds no frame of a sequence uses.
                 let seed = shot.seed.wrapping_add(3_000_000 + (i * chunks + k) as u64);
@@ -105,34 +106,28 @@ pub fn choose_factor(
                     r.gradient.expect("a difference was asked for").pixels,
                 )
             })
-            .collect();
-        let spread = |images: Vec<&[[f32; 3]]>| -> [f64; 3] {
-            let n = images[0].len();
+            .unzip();
+        // Σ over pixels of one sample's variance: the chunks' variance of the mean,
+        // times chunks × spp (`Estimate` computes the per-pixel part).
+        let spread = |images: &[Vec<[f32; 3]>]| -> [f64; 3] {
+            let e = Estimate::from_chunks(images, PixelLayout::independent(width));
             [0, 1, 2].map(|c| {
-                (0..n)
-                    .map(|p| {
-                        let v: Vec<f64> = images.iter().map(|img| img[p][c] as f64).collect();
-                        let m = v.iter().sum::<f64>() / chunks as f64;
-                        v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (chunks - 1) as f64
-                    })
-                    .sum::<f64>()
-                    * spp as f64
+                e.var_mean.iter().map(|v| v[c]).sum::<f64>() * (chunks as u32 * spp) as f64
             })
         };
-        let var_source = spread(renders.iter().map(|r| r.0.as_slice()).collect());
-        let var_difference = spread(renders.iter().map(|r| r.1.as_slice()).collect());
+        let var_source = spread(&sources);
+        let var_difference = spread(&differences);
         let spatial_gain = match spatial {
             Some(params) if var_difference.iter().sum::<f64>() > 0.0 => {
                 // Pure noise with the difference's spread: (D_0 − D_1) / √2.
-                let noise: Vec<[f32; 3]> = renders[0]
-                    .1
+                let noise: Vec<[f32; 3]> = differences[0]
                     .iter()
-                    .zip(&renders[1].1)
+                    .zip(&differences[1])
                     .map(|(a, b)| {
                         [0, 1, 2].map(|c| (a[c] - b[c]) * std::f32::consts::FRAC_1_SQRT_2)
                     })
                     .collect();
-                let filtered = spatial::denoise(&noise, &renders[0].0, features, width, params);
+                let filtered = spatial::denoise(&noise, &sources[0], features, width, params);
                 let power = |img: &[[f32; 3]]| -> f64 {
                     img.iter().flatten().map(|&x| (x as f64) * (x as f64)).sum()
                 };
