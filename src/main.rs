@@ -686,10 +686,10 @@ fn run(cli: Cli) -> Result<()> {
                 let costs: Vec<String> = p
                     .candidates
                     .iter()
-                    .map(|c| format!("{}: {:.3e}", c.factor, c.cost.iter().sum::<f64>()))
+                    .map(|c| format!("{}: {:.3e}", c.factor, c.error.iter().sum::<f64>()))
                     .collect();
                 println!(
-                    "factor {:?} (R, G, B) chosen by the pilot in {:.2} s (error x seconds per spp, summed over channels: {})",
+                    "factor {:?} (R, G, B) chosen by the pilot in {:.2} s (predicted squared error at equal time, summed over pixels and channels: {})",
                     p.factor,
                     p.seconds,
                     costs.join(", ")
@@ -816,6 +816,8 @@ fn table_options(args: TableArgs, default_out: &str) -> Result<TableOptions> {
         c_beta,
         factor,
         mitsuba,
+        difference_factors: Vec::new(),
+        skip: Vec::new(),
         seed,
         write_png: !no_png,
         verbose: true,

@@ -283,7 +283,8 @@ pub enum Gradient {
     /// same paths: each path's contribution f carries α^k for its k scattering vertices
     /// in the medium and its sampling does not depend on α, so f · ((α_t / α)^k − 1) is
     /// an unbiased sample of the difference (Eq. 6–8 integrated from α to α_t instead of
-    /// differentiated; Russian roulette detached as for the derivative).
+    /// differentiated; Russian roulette detached as for the derivative, its q from the
+    /// target's weight β_t, the same at every source albedo).
     Difference { medium: u32, target: Vec3 },
 }
 
@@ -352,7 +353,15 @@ pub fn sample(
         if depth > s.rr_depth {
             // The same q as without a gradient (same paths), except that a path whose β
             // is 0 but dβ is not (albedo 0) must keep q > 0 for the detached estimator.
-            let w = match beta.max_element() {
+            // The difference's paths are rouletted by the target's weight β_t = β + dβ
+            // (≥ β): by β, long paths, which weigh (α_t/α)^k more at the target, would
+            // end early and their survivors' 1/q give D a heavy tail; by β_t, |dβ|/q stays
+            // bounded, and q is the same at every source albedo.
+            let roulette_weight = match settings.gradient {
+                Gradient::Difference { .. } => beta + d_beta,
+                _ => beta,
+            };
+            let w = match roulette_weight.max_element() {
                 b if b > 0.0 => b,
                 _ => d_beta.abs().max_element(),
             };

@@ -1,26 +1,38 @@
 //! The source factor without a reference, for the difference predictor (`--factor
 //! auto`): a cheap pilot measures, at each candidate factor f, what the method's error
-//! is made of, and picks the f of least error per second.
+//! is made of, and picks the f of least predicted error at equal time.
 //!
 //! At α_s = f α_t the prediction is R_t ≈ R_s + D̃, D̃ the denoised difference. Its
-//! variance per pixel and channel at N spp is
+//! squared error, summed over pixels, for one channel at N spp is about
 //!
-//!   Var(R_s)/N + Var(D)/(N · η),    η = N_eff · η_spatial,
+//!   E(f) = [Σ Var(R_s) + Σ Var(F D) / N_eff] / N_f + Σ b²,                      (P1)
 //!
-//! (the two are nearly uncorrelated once D is blended over frames), where N_eff =
-//! (Σ w_k)² / Σ w_k² is the number of frames Eq. 10's weights are worth and η_spatial
-//! the factor the spatial filter divides noise by: measured by filtering pure noise, the
-//! half-difference of two pilot renders, with the same guides. The pilot renders `chunks`
-//! independent images of `spp` samples at each factor; their spread gives Var(R_s) and
-//! Var(D) summed over the image, and their time the seconds per spp t(f). The factor
-//! chosen minimises [Σ Var(R_s) + Σ Var(D)/η] · t(f), the error at equal time, for each
-//! channel on its own: a channel's albedo scales only that channel's contributions and
-//! sampling does not depend on it, so a channel's terms depend on its own factor alone
-//! (a candle's red albedo 0.98 wants a factor nearer 1 than its blue 0.88). Factor 1
-//! (plain volpath, D = 0) is a candidate too, so the choice never predicts a loss.
+//! with Var(·) the variance of one sample, F the spatial filter as a matrix (the
+//! identity without it), N_eff = (Σ w_k)² / Σ w_k² the number of frames Eq. 10's weights
+//! are worth, and b = (F − I) E[D] the bias F adds (the temporal blend of a still or
+//! slowly turning view adds little). The two variances are nearly uncorrelated once D is
+//! blended over frames. N_f = N t(1)/t(f) is the spp the same time buys at factor f,
+//! t(f) the seconds per spp.
 //!
-//! Not in the estimate: the bias the denoising adds to D (it grows with D, so at low
-//! factors the estimate is optimistic; the candidates stop at 0.7 for that reason).
+//! The pilot renders `chunks` independent images of `spp` samples at each factor with
+//! the same seeds for every factor. Sampling depends on σ_t only and the difference's
+//! Russian roulette on the target's weight only (`volpath::Gradient::Difference`), so
+//! every candidate sees exactly the same paths: their differences are measured with far
+//! less noise than each alone (common random numbers). From the images D_k and their
+//! mean D̄ (P1)'s terms are:
+//! * Σ Var(R_s), Σ Var(D): per pixel j the chunks' spread v_j, summed;
+//! * Σ Var(F D) = Σ_j v_j Σ_i F_ij² for pixel noise independent between pixels (each
+//!   column's norm from the filter's weights: no noisy filtered noise image);
+//! * Σ b² = ‖(F − I) D̄‖² − Σ_j Var(D̄_j) Σ_i (F − I)_ij² (clamped at 0): F is
+//!   linear in D for fixed guides, and the second term removes, in expectation, what
+//!   D̄'s own noise adds to the first;
+//! * t(f): a straight line through the candidates' times (one candidate's time at a
+//!   few spp is mostly noise; the real dependence on the albedo is smooth).
+//! F is guided by the mean of all the pilot's source images (the run guides by its own,
+//! less noisy, R_s). Each channel is chosen on its own: a channel's albedo scales only that
+//! channel's contributions, so its terms depend on its own factor alone (a candle's red
+//! albedo 0.98 wants a factor nearer 1 than its blue 0.88). Factor 1 (plain volpath,
+//! D = 0) is a candidate, so the choice never plans a loss.
 
 use super::spatial::{self, BilateralParams, Features};
 use crate::image::stats::{Estimate, PixelLayout};
@@ -30,22 +42,24 @@ use crate::scene::shot::Shot;
 use crate::scene::Scene;
 
 /// The factors the pilot tries, 1 (no extrapolation) included.
-pub const CANDIDATES: [f32; 7] = [1.0, 0.95, 0.9, 0.85, 0.8, 0.75, 0.7];
+pub const CANDIDATES: [f32; 10] = [1.0, 0.95, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2];
 
-/// One candidate's measurements.
+/// One candidate's measurements, per channel where an array (sums over pixels).
 #[derive(Clone, Debug)]
 pub struct Candidate {
     pub factor: f32,
-    /// Per channel, Σ over pixels of Var(R_s) of one sample per pixel.
+    /// Σ Var(R_s) of one sample per pixel.
     pub var_source: [f64; 3],
-    /// Per channel, Σ of Var(D) of one sample per pixel.
+    /// Σ Var(D) of one sample per pixel.
     pub var_difference: [f64; 3],
-    /// The spatial filter's noise reduction measured at this factor (1 without it).
-    pub spatial_gain: f64,
+    /// Σ Var(F D) of one sample per pixel: what the spatial filter F leaves of it
+    /// (Var(D) without the filter).
+    pub var_difference_filtered: [f64; 3],
+    /// Σ b², the spatial filter's squared bias on E[D] (0 without it).
+    pub bias2: [f64; 3],
     pub seconds_per_spp: f64,
-    /// Per channel, [Var(R_s) + Var(D)/η] · t: the error at equal time, up to a
-    /// common factor.
-    pub cost: [f64; 3],
+    /// (P1): the predicted squared error of the run's prediction at equal time.
+    pub error: [f64; 3],
 }
 
 #[derive(Clone, Debug)]
@@ -64,9 +78,76 @@ pub fn effective_frames(frames: usize, w_a: f64) -> f64 {
     sum * sum / sq
 }
 
-/// Runs the pilot for `medium` (target albedo the scene's) through `shot`, with
-/// `chunks` ≥ 2 renders of `spp` samples per factor, for a sequence of `frames`
-/// frames blended with `w_a` and, if given, the spatial filter `spatial`.
+/// Per channel Σ over pixels of (a − b)².
+fn distance2(a: &[[f32; 3]], b: &[[f32; 3]]) -> [f64; 3] {
+    a.iter().zip(b).fold([0.0; 3], |acc, (x, y)| {
+        [0, 1, 2].map(|c| acc[c] + ((x[c] - y[c]) as f64).powi(2))
+    })
+}
+
+/// The least-squares line through `points` (x, y), as a function clamped to stay
+/// positive (a time); constant where the x do not vary.
+fn fit_line(points: &[(f64, f64)]) -> impl Fn(f64) -> f64 {
+    let n = points.len() as f64;
+    let (mx, my) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
+    let sxx: f64 = points.iter().map(|(x, _)| (x - mx).powi(2)).sum();
+    let sxy: f64 = points.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    let floor = my.abs() * 1e-3 + f64::MIN_POSITIVE;
+    move |x| (my + slope * (x - mx)).max(floor)
+}
+
+/// What the spatial filter F leaves of the difference's noise (Σ_j Σ_i F_ij² v_j, per
+/// channel, v_j one sample's variance at pixel j, from `samples` samples) and its
+/// squared bias on the difference's mean (the module comment's estimator).
+fn spatial_terms(
+    difference: &Estimate,
+    samples: f64,
+    filter: &FilterMatrix,
+) -> ([f64; 3], [f64; 3]) {
+    let mut left = [0.0; 3];
+    // Σ_j Var(D̄_j) Σ_i (F − I)_ij²: what D̄'s own noise adds to ‖(F − I) D̄‖².
+    let mut noise_power = [0.0; 3];
+    for (j, v) in difference.var_mean.iter().enumerate() {
+        for c in 0..3 {
+            left[c] += filter.norm2[j] * v[c] * samples;
+            noise_power[c] += (filter.norm2[j] - 2.0 * filter.diagonal[j] + 1.0) * v[c];
+        }
+    }
+    let d_mean: Vec<[f32; 3]> = difference
+        .mean
+        .iter()
+        .map(|m| m.map(|x| x as f32))
+        .collect();
+    let filtered = spatial::denoise(
+        &d_mean,
+        &filter.guide,
+        filter.features,
+        filter.width,
+        filter.params,
+    );
+    let seen = distance2(&filtered, &d_mean);
+    let bias2 = [0, 1, 2].map(|c| (seen[c] - noise_power[c]).max(0.0));
+    (left, bias2)
+}
+
+/// The spatial filter as the pilot sees it: guided by the mean of all its source
+/// renders (every factor's: less noisy than one factor's few), with its column norms.
+struct FilterMatrix<'a> {
+    guide: Vec<[f32; 3]>,
+    features: &'a Features,
+    width: usize,
+    params: &'a BilateralParams,
+    norm2: Vec<f64>,
+    diagonal: Vec<f64>,
+}
+
+/// Runs the pilot for `medium` (target albedo the scene's) through `shot` (its spp is
+/// the run's N at factor 1), with `chunks` ≥ 2 renders of `spp` samples per factor,
+/// for a sequence of `frames` frames blended with `w_a` and, if given, the spatial
+/// filter `spatial`.
 #[allow(clippy::too_many_arguments)]
 pub fn choose_factor(
     scene: &Scene,
@@ -87,8 +168,12 @@ pub fn choose_factor(
     let target = scene.media[medium as usize].albedo;
     let n_eff = effective_frames(frames, w_a);
     let width = shot.film.crop_size.0;
-    let mut candidates = Vec::new();
-    for (i, &factor) in CANDIDATES.iter().enumerate() {
+    let run_spp = shot.spp.max(1) as f64;
+    let samples = (chunks as u32 * spp) as f64;
+    let layout = PixelLayout::independent(width);
+    let mut measured = Vec::new();
+    let mut guide = vec![[0.0f32; 3]; shot.film.crop_size.0 * shot.film.crop_size.1];
+    for &factor in CANDIDATES.iter() {
         let options = RenderOptions {
             gradient: Gradient::Difference { medium, target },
             ..Default::default()
@@ -97,8 +182,9 @@ pub fn choose_factor(
         let mut seconds = 0.0;
         let (sources, differences): (Vec<_>, Vec<_>) = (0..chunks)
             .map(|k| {
-                // Seeds no frame of a sequence uses.
-                let seed = shot.seed.wrapping_add(3_000_000 + (i * chunks + k) as u64);
+                // The same seeds for every factor (common random numbers), seeds no
+                // frame of a sequence uses.
+                let seed = shot.seed.wrapping_add(3_000_000 + k as u64);
                 let r = render(scene, &shot.with(spp, seed), &options);
                 seconds += r.stats.seconds;
                 (
@@ -107,51 +193,67 @@ pub fn choose_factor(
                 )
             })
             .unzip();
-        // Σ over pixels of one sample's variance: the chunks' variance of the mean,
-        // times chunks × spp (`Estimate` computes the per-pixel part).
-        let spread = |images: &[Vec<[f32; 3]>]| -> [f64; 3] {
-            let e = Estimate::from_chunks(images, PixelLayout::independent(width));
-            [0, 1, 2].map(|c| {
-                e.var_mean.iter().map(|v| v[c]).sum::<f64>() * (chunks as u32 * spp) as f64
-            })
-        };
-        let var_source = spread(&sources);
-        let var_difference = spread(&differences);
-        let spatial_gain = match spatial {
-            Some(params) if var_difference.iter().sum::<f64>() > 0.0 => {
-                // Pure noise with the difference's spread: (D_0 − D_1) / √2.
-                let noise: Vec<[f32; 3]> = differences[0]
-                    .iter()
-                    .zip(&differences[1])
-                    .map(|(a, b)| {
-                        [0, 1, 2].map(|c| (a[c] - b[c]) * std::f32::consts::FRAC_1_SQRT_2)
-                    })
-                    .collect();
-                let filtered = spatial::denoise(&noise, &sources[0], features, width, params);
-                let power = |img: &[[f32; 3]]| -> f64 {
-                    img.iter().flatten().map(|&x| (x as f64) * (x as f64)).sum()
-                };
-                (power(&noise) / power(&filtered).max(f64::MIN_POSITIVE)).max(1.0)
+        let share = 1.0 / (chunks * CANDIDATES.len()) as f32;
+        for image in &sources {
+            for (g, v) in guide.iter_mut().zip(image) {
+                *g = [0, 1, 2].map(|c| g[c] + v[c] * share);
             }
-            _ => 1.0,
+        }
+        let source = Estimate::from_chunks(&sources, layout);
+        let difference = Estimate::from_chunks(&differences, layout);
+        measured.push((factor, source, difference, seconds));
+    }
+    let filter = spatial.map(|params| {
+        let (norm2, diagonal) = spatial::column_norms(&guide, features, width, params);
+        FilterMatrix {
+            guide,
+            features,
+            width,
+            params,
+            norm2,
+            diagonal,
+        }
+    });
+    let mut candidates: Vec<Candidate> = Vec::new();
+    for (factor, source, difference, seconds) in measured {
+        // Σ over pixels of one sample's variance: the chunks' variance of the mean,
+        // times chunks × spp.
+        let total = |e: &Estimate| -> [f64; 3] {
+            [0, 1, 2].map(|c| e.var_mean.iter().map(|v| v[c]).sum::<f64>() * samples)
         };
-        let seconds_per_spp = seconds / (chunks as f64 * spp as f64);
-        let cost = [0, 1, 2].map(|c| {
-            (var_source[c] + var_difference[c] / (n_eff * spatial_gain)) * seconds_per_spp
-        });
+        let (var_source, var_difference) = (total(&source), total(&difference));
+        let (var_difference_filtered, bias2) = match &filter {
+            Some(filter) if var_difference.iter().sum::<f64>() > 0.0 => {
+                spatial_terms(&difference, samples, filter)
+            }
+            _ => (var_difference, [0.0; 3]),
+        };
         candidates.push(Candidate {
             factor,
             var_source,
             var_difference,
-            spatial_gain,
-            seconds_per_spp,
-            cost,
+            var_difference_filtered,
+            bias2,
+            seconds_per_spp: seconds / samples,
+            error: [0.0; 3],
         });
+    }
+    // t(f): the module comment's straight line.
+    let times: Vec<(f64, f64)> = candidates
+        .iter()
+        .map(|c| (c.factor as f64, c.seconds_per_spp))
+        .collect();
+    let time_at = fit_line(&times);
+    for c in &mut candidates {
+        // N_f: the spp that factor 1's time for N buys at this factor.
+        let n_f = run_spp * time_at(1.0) / time_at(c.factor as f64);
+        c.error = [0, 1, 2]
+            .map(|k| (c.var_source[k] + c.var_difference_filtered[k] / n_eff) / n_f + c.bias2[k]);
     }
     let best = [0, 1, 2].map(|c| {
         candidates
             .iter()
-            .min_by(|a, b| a.cost[c].total_cmp(&b.cost[c]))
+            .min_by(|a, b| a.error[c].total_cmp(&b.error[c]))
             .expect("candidates")
             .factor
     });

@@ -91,49 +91,109 @@ pub fn denoise(
     width: usize,
     p: &BilateralParams,
 ) -> Vec<[f32; 3]> {
-    let height = gradient.len() / width;
-    let lum = |c: &[f32; 3]| (c[0] + c[1] + c[2]) / 3.0;
-    let r = p.radius as i64;
+    let filter = Filter::new(radiance, features, width, p);
     (0..gradient.len())
         .map(|i| {
-            let (xi, yi) = ((i % width) as i64, (i / width) as i64);
-            let (li, zi, ni) = (
-                lum(&radiance[i]),
-                features.depth[i],
-                Vec3A::from(features.normal[i]),
-            );
             let mut sum = [0.0f64; 3];
             let mut wsum = 0.0f64;
-            for yj in (yi - r).max(0)..=(yi + r).min(height as i64 - 1) {
-                for xj in (xi - r).max(0)..=(xi + r).min(width as i64 - 1) {
-                    let j = yj as usize * width + xj as usize;
-                    let dx2 = ((xi - xj).pow(2) + (yi - yj).pow(2)) as f32;
-                    let lj = lum(&radiance[j]);
-                    let dr = (li - lj) / (p.sigma_r * li.abs().max(lj.abs()).max(1e-6));
-                    let dn = (ni - Vec3A::from(features.normal[j])).length() / p.sigma_n;
-                    let zj = features.depth[j];
-                    let dz = if zi.is_finite() && zj.is_finite() {
-                        (zi - zj) / (p.sigma_z * zi.min(zj).max(1e-6))
-                    } else if zi.is_finite() != zj.is_finite() {
-                        f32::INFINITY // background against a surface: never mixed
-                    } else {
-                        0.0
-                    };
-                    let e =
-                        dx2 / (2.0 * p.sigma_x * p.sigma_x) + 0.5 * (dr * dr + dn * dn + dz * dz);
-                    let w = (-e as f64).exp();
-                    if w > 0.0 {
-                        for c in 0..3 {
-                            sum[c] += w * gradient[j][c] as f64;
-                        }
-                        wsum += w;
-                    }
+            filter.for_each_weight(i, |j, w| {
+                for c in 0..3 {
+                    sum[c] += w * gradient[j][c] as f64;
                 }
-            }
+                wsum += w;
+            });
             // The centre pixel always has weight 1, so wsum ≥ 1.
             sum.map(|s| (s / wsum) as f32)
         })
         .collect()
+}
+
+/// For the filter as a matrix F (G' = F G, F_ij = w_ij / Σ_j w_ij): per pixel j, the
+/// column's squared norm Σ_i F_ij² and the diagonal F_jj. For independent pixel noise
+/// of variances v_j, Σ_j v_j Σ_i F_ij² is the noise left after filtering, and
+/// Σ_j v_j (Σ_i F_ij² − 2 F_jj + 1) the power of (F − I) applied to the noise.
+pub fn column_norms(
+    radiance: &[[f32; 3]],
+    features: &Features,
+    width: usize,
+    p: &BilateralParams,
+) -> (Vec<f64>, Vec<f64>) {
+    let filter = Filter::new(radiance, features, width, p);
+    let len = radiance.len();
+    let (mut norm2, mut diagonal) = (vec![0.0f64; len], vec![0.0f64; len]);
+    for i in 0..len {
+        let mut wsum = 0.0f64;
+        filter.for_each_weight(i, |_, w| wsum += w);
+        filter.for_each_weight(i, |j, w| {
+            let f = w / wsum;
+            norm2[j] += f * f;
+            if j == i {
+                diagonal[i] = f;
+            }
+        });
+    }
+    (norm2, diagonal)
+}
+
+/// The filter's weights w_ij (the module comment) over one image's guides.
+struct Filter<'a> {
+    radiance: &'a [[f32; 3]],
+    features: &'a Features,
+    width: usize,
+    height: usize,
+    p: &'a BilateralParams,
+}
+
+impl<'a> Filter<'a> {
+    fn new(
+        radiance: &'a [[f32; 3]],
+        features: &'a Features,
+        width: usize,
+        p: &'a BilateralParams,
+    ) -> Self {
+        Filter {
+            radiance,
+            features,
+            width,
+            height: radiance.len() / width,
+            p,
+        }
+    }
+
+    /// Calls `f(j, w_ij)` for each pixel j within the radius of i whose weight is > 0.
+    fn for_each_weight(&self, i: usize, mut f: impl FnMut(usize, f64)) {
+        let (p, width, features) = (self.p, self.width, self.features);
+        let lum = |c: &[f32; 3]| (c[0] + c[1] + c[2]) / 3.0;
+        let r = p.radius as i64;
+        let (xi, yi) = ((i % width) as i64, (i / width) as i64);
+        let (li, zi, ni) = (
+            lum(&self.radiance[i]),
+            features.depth[i],
+            Vec3A::from(features.normal[i]),
+        );
+        for yj in (yi - r).max(0)..=(yi + r).min(self.height as i64 - 1) {
+            for xj in (xi - r).max(0)..=(xi + r).min(width as i64 - 1) {
+                let j = yj as usize * width + xj as usize;
+                let dx2 = ((xi - xj).pow(2) + (yi - yj).pow(2)) as f32;
+                let lj = lum(&self.radiance[j]);
+                let dr = (li - lj) / (p.sigma_r * li.abs().max(lj.abs()).max(1e-6));
+                let dn = (ni - Vec3A::from(features.normal[j])).length() / p.sigma_n;
+                let zj = features.depth[j];
+                let dz = if zi.is_finite() && zj.is_finite() {
+                    (zi - zj) / (p.sigma_z * zi.min(zj).max(1e-6))
+                } else if zi.is_finite() != zj.is_finite() {
+                    f32::INFINITY // background against a surface: never mixed
+                } else {
+                    0.0
+                };
+                let e = dx2 / (2.0 * p.sigma_x * p.sigma_x) + 0.5 * (dr * dr + dn * dn + dz * dz);
+                let w = (-e as f64).exp();
+                if w > 0.0 {
+                    f(j, w);
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -180,6 +240,42 @@ mod tests {
                 (l - 1.0).abs() < 0.3 && (r + 2.0).abs() < 0.3,
                 "row {y}: {l}, {r}"
             );
+        }
+    }
+
+    /// The column norms and diagonal are those of the matrix whose columns are the
+    /// filtered unit impulses.
+    #[test]
+    fn column_norms_match_filtered_impulses() {
+        let (w, h) = (7, 5);
+        let f = Features {
+            depth: (0..w * h).map(|i| 1.0 + (i % 3) as f32 * 0.02).collect(),
+            normal: (0..w * h)
+                .map(|i| if i % w < 3 { Vec3::Y } else { Vec3::Z })
+                .collect(),
+            position: vec![Vec3::ZERO; w * h],
+            direction: vec![Vec3::Z; w * h],
+        };
+        let radiance: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| [0.2 + 0.05 * (i % 4) as f32; 3])
+            .collect();
+        let params = BilateralParams::default();
+        let (norm2, diagonal) = column_norms(&radiance, &f, w, &params);
+        for j in 0..w * h {
+            let mut impulse = vec![[0.0f32; 3]; w * h];
+            impulse[j] = [1.0; 3];
+            let column = denoise(&impulse, &radiance, &f, w, &params);
+            let expected: f64 = column.iter().map(|v| (v[0] as f64).powi(2)).sum();
+            assert!(
+                (norm2[j] - expected).abs() < 1e-5 * expected,
+                "column {j}: {} vs {expected}",
+                norm2[j]
+            );
+            assert!(
+                (diagonal[j] - column[j][0] as f64).abs() < 1e-6,
+                "diagonal {j}"
+            );
+            assert!(diagonal[j] > 0.0 && diagonal[j] < 1.0);
         }
     }
 

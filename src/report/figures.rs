@@ -137,6 +137,14 @@ fn reference_name(reference: &str, res: u32) -> String {
 }
 
 /// One run of `scene` against a figure reference, with extra `-D` parameters.
+/// What a sweep point renders besides the table's rows.
+#[derive(Default)]
+struct Extra {
+    /// `regularized_difference` rows at these fixed factors.
+    difference_factors: Vec<f32>,
+    skip: Vec<Method>,
+}
+
 fn sweep_point(
     opts: &FigureOptions,
     job: SceneJob,
@@ -144,6 +152,7 @@ fn sweep_point(
     budget: f64,
     factor: Option<f32>,
     mitsuba: bool,
+    extra: Extra,
 ) -> Result<TableRun> {
     let mut params: Vec<(String, String)> = params
         .iter()
@@ -163,6 +172,8 @@ fn sweep_point(
             None
         },
         out: opts.base.out.join("images"),
+        difference_factors: extra.difference_factors,
+        skip: extra.skip,
         ..opts.base.clone()
     };
     std::fs::create_dir_all(&table.out)?;
@@ -188,9 +199,13 @@ fn mse_series(points: &[Point], method: Method) -> Vec<(f64, f64)> {
         .collect()
 }
 
-const METHODS: [(Method, &str); 4] = [
-    (Method::Regularized, "regularized (temporal)"),
-    (Method::RegularizedSpatial, "regularized (spatial)"),
+const METHODS: [(Method, &str); 5] = [
+    (
+        Method::RegularizedAuto,
+        "regularized (difference, auto factor)",
+    ),
+    (Method::Regularized, "regularized (paper, temporal)"),
+    (Method::RegularizedSpatial, "regularized (paper, spatial)"),
     (Method::Volpath, "volpath (mediareg)"),
     (Method::MitsubaVolpath, "volpath (Mitsuba 3)"),
 ];
@@ -238,7 +253,7 @@ fn time_sweep(
             reference: reference_name(reference, opts.res),
             tag: format!("{figure}_{b}s"),
         };
-        let run = sweep_point(opts, job, params, b, None, true)?;
+        let run = sweep_point(opts, job, params, b, None, true, Extra::default())?;
         notes.extend(run.notes);
         points.push(Point {
             x: b,
@@ -275,10 +290,24 @@ fn time_sweep(
     )
 }
 
-/// Fig. 6: σ_t sweep on the Bunny at one budget.
+/// The fixed factors the σ_t and factor sweeps render the difference predictor at, to
+/// compare the pilot's choice with the best one the reference picks.
+const FACTOR_GRID: [f32; 6] = [0.9, 0.7, 0.5, 0.4, 0.3, 0.2];
+
+/// The lowest corrected MSE of the fixed-factor difference rows of `rows`, with its factor.
+fn best_fixed(rows: &[Row]) -> Option<(f32, f64)> {
+    rows.iter()
+        .filter(|r| r.method == Method::RegularizedDifference)
+        .map(|r| (r.factor.map_or(f32::NAN, |f| f[0]), r.mse_corrected))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// Fig. 6: σ_t sweep on the Bunny at one budget, with the pilot's factor against the
+/// best of a grid of fixed factors chosen with the reference.
 fn fig6(opts: &FigureOptions) -> Result<PathBuf> {
     let mut points = Vec::new();
     let mut notes = Vec::new();
+    let mut best = Vec::new();
     for sigma_t in [5.0, 10.0, 15.0, 20.0, 50.0] {
         let s = format!("{sigma_t}");
         let job = SceneJob {
@@ -286,8 +315,34 @@ fn fig6(opts: &FigureOptions) -> Result<PathBuf> {
             reference: reference_name(&format!("bunny_sigma_t{s}"), opts.res),
             tag: format!("fig6_sigma_t{s}"),
         };
-        let run = sweep_point(opts, job, &[("sigma_t", &s)], opts.budget, None, false)?;
+        let extra = Extra {
+            difference_factors: FACTOR_GRID.to_vec(),
+            skip: Vec::new(),
+        };
+        let run = sweep_point(
+            opts,
+            job,
+            &[("sigma_t", &s)],
+            opts.budget,
+            None,
+            false,
+            extra,
+        )?;
         notes.extend(run.notes);
+        if let (Some((f, mse)), Some(auto)) = (
+            best_fixed(&run.rows),
+            run.rows
+                .iter()
+                .find(|r| r.method == Method::RegularizedAuto),
+        ) {
+            notes.push(format!(
+                "sigma_t {s}: auto factor {:?} MSE {:.3e}; best fixed factor {f} MSE {mse:.3e}; auto / best {:.2}",
+                auto.factor.unwrap_or([f32::NAN; 3]),
+                auto.mse_corrected,
+                auto.mse_corrected / mse
+            ));
+            best.push((sigma_t, mse));
+        }
         points.push(Point {
             x: sigma_t,
             rows: run.rows,
@@ -295,11 +350,19 @@ fn fig6(opts: &FigureOptions) -> Result<PathBuf> {
     }
     let series = vec![
         Series::new(
-            "regularized (temporal)",
+            "regularized (difference, auto factor)",
+            mse_series(&points, Method::RegularizedAuto),
+        ),
+        Series::dashed(
+            "regularized (difference, best fixed factor: chosen with the reference)",
+            best,
+        ),
+        Series::new(
+            "regularized (paper, temporal)",
             mse_series(&points, Method::Regularized),
         ),
         Series::new(
-            "regularized (spatial)",
+            "regularized (paper, spatial)",
             mse_series(&points, Method::RegularizedSpatial),
         ),
         Series::new("volpath, equal time", mse_series(&points, Method::Volpath)),
@@ -324,33 +387,88 @@ fn fig6(opts: &FigureOptions) -> Result<PathBuf> {
     )
 }
 
-/// Fig. 9: source-factor sweep on Lucy at one budget; plain volpath once, as a line.
+/// Fig. 9: source-factor sweep on Lucy at one budget: the paper's predictor and the
+/// difference at each factor; plain volpath (the mean of its runs) and the pilot's
+/// choice (one run) as lines.
 fn fig9(opts: &FigureOptions) -> Result<PathBuf> {
     let mut points = Vec::new();
     let mut notes = Vec::new();
-    for factor in [0.1f64, 0.3, 0.5, 0.7, 0.8, 0.9, 0.93, 0.95, 0.97] {
-        let job = SceneJob {
-            scene: "lucy".into(),
-            reference: reference_name("lucy", opts.res),
-            tag: format!("fig9_factor{factor}"),
+    let job = |tag: String| SceneJob {
+        scene: "lucy".into(),
+        reference: reference_name("lucy", opts.res),
+        tag,
+    };
+    for factor in [0.1f64, 0.2, 0.3, 0.5, 0.7, 0.8, 0.9, 0.93, 0.95, 0.97] {
+        let extra = Extra {
+            difference_factors: vec![factor as f32],
+            skip: vec![Method::RegularizedAuto],
         };
-        let run = sweep_point(opts, job, &[], opts.budget, Some(factor as f32), false)?;
+        let tag = format!("fig9_factor{factor}");
+        let run = sweep_point(
+            opts,
+            job(tag),
+            &[],
+            opts.budget,
+            Some(factor as f32),
+            false,
+            extra,
+        )?;
         notes.extend(run.notes);
         points.push(Point {
             x: factor,
             rows: run.rows,
         });
     }
+    let only_auto = Extra {
+        difference_factors: Vec::new(),
+        skip: vec![
+            Method::Volpath,
+            Method::Regularized,
+            Method::RegularizedSpatial,
+        ],
+    };
+    let auto_run = sweep_point(
+        opts,
+        job("fig9_auto".into()),
+        &[],
+        opts.budget,
+        None,
+        false,
+        only_auto,
+    )?;
+    notes.extend(auto_run.notes);
+    let auto = auto_run
+        .rows
+        .iter()
+        .find(|r| r.method == Method::RegularizedAuto)
+        .ok_or_else(|| anyhow!("fig9: the automatic row did not run"))?;
+    let all_rows: Vec<Row> = points.iter().flat_map(|p| p.rows.clone()).collect();
+    if let Some((f, mse)) = best_fixed(&all_rows) {
+        notes.push(format!(
+            "auto factor {:?} MSE {:.3e}; best fixed factor {f} MSE {mse:.3e}; auto / best {:.2}",
+            auto.factor.unwrap_or([f32::NAN; 3]),
+            auto.mse_corrected,
+            auto.mse_corrected / mse
+        ));
+    }
     let volpath = mse_series(&points, Method::Volpath);
     let mean_volpath = volpath.iter().map(|p| p.1).sum::<f64>() / volpath.len().max(1) as f64;
     let (x0, x1) = (points[0].x, points[points.len() - 1].x);
     let series = vec![
         Series::new(
-            "regularized (temporal)",
+            "regularized (difference)",
+            mse_series(&points, Method::RegularizedDifference),
+        ),
+        Series::dashed(
+            "regularized (difference, auto factor: one run)",
+            vec![(x0, auto.mse_corrected), (x1, auto.mse_corrected)],
+        ),
+        Series::new(
+            "regularized (paper, temporal)",
             mse_series(&points, Method::Regularized),
         ),
         Series::new(
-            "regularized (spatial)",
+            "regularized (paper, spatial)",
             mse_series(&points, Method::RegularizedSpatial),
         ),
         Series::dashed(
@@ -358,6 +476,10 @@ fn fig9(opts: &FigureOptions) -> Result<PathBuf> {
             vec![(x0, mean_volpath), (x1, mean_volpath)],
         ),
     ];
+    points.push(Point {
+        x: f64::NAN,
+        rows: auto_run.rows,
+    });
     finish(
         opts,
         "fig9",

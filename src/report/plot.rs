@@ -6,6 +6,8 @@ use std::path::Path;
 use std::sync::Once;
 
 use anyhow::{anyhow, bail, Result};
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 /// One curve.
@@ -94,6 +96,89 @@ fn tick(v: f64) -> String {
     s.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
+/// Tick positions (axis units) within `r`: on a log axis the values 1, 2, 5 of each
+/// decade (1, 2, ..., 9 where that gives fewer than three, else linear 1-2-5 steps of
+/// the values), on a linear axis multiples of a 1-2-5 step.
+fn key_points(r: &Range<f64>, log: bool) -> Vec<f64> {
+    if !log {
+        return linear_ticks(r.start, r.end);
+    }
+    let inside = |v: &f64| r.start <= *v && *v <= r.end;
+    let decades = r.start.floor() as i32..=r.end.ceil() as i32;
+    for mantissas in [
+        &[1.0, 2.0, 5.0][..],
+        &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0],
+    ] {
+        let ticks: Vec<f64> = decades
+            .clone()
+            .flat_map(|e| mantissas.iter().map(move |m| (m * 10f64.powi(e)).log10()))
+            .filter(inside)
+            .collect();
+        if ticks.len() >= 3 {
+            return ticks;
+        }
+    }
+    linear_ticks(10f64.powf(r.start), 10f64.powf(r.end))
+        .into_iter()
+        .filter(|v| *v > 0.0)
+        .map(f64::log10)
+        .collect()
+}
+
+/// A linear coordinate that ticks at `key_points` (plotters' own ticks are evenly
+/// spaced in axis units, which on a log axis lands on values like 6.31).
+struct Ticked {
+    inner: RangedCoordf64,
+    ticks: Vec<f64>,
+}
+
+impl Ticked {
+    fn new(r: Range<f64>, log: bool) -> Ticked {
+        Ticked {
+            ticks: key_points(&r, log),
+            inner: r.into(),
+        }
+    }
+}
+
+impl Ranged for Ticked {
+    type FormatOption = DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        self.inner.map(value, limit)
+    }
+
+    fn key_points<Hint: KeyPointHint>(&self, hint: Hint) -> Vec<f64> {
+        // Light grid lines ask for more points than the bold ones: only ours are drawn.
+        match hint.weight().allow_light_points() {
+            true => Vec::new(),
+            false => self.ticks.clone(),
+        }
+    }
+
+    fn range(&self) -> Range<f64> {
+        self.inner.range()
+    }
+}
+
+/// Multiples of a 1-2-5 step (about an eighth of the range) within lo..=hi.
+fn linear_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let raw = (hi - lo) / 8.0;
+    if !(raw > 0.0 && raw.is_finite()) {
+        return vec![lo];
+    }
+    let base = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * base)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * base);
+    ((lo / step).ceil() as i64..=(hi / step).floor() as i64)
+        .map(|k| k as f64 * step)
+        .collect()
+}
+
 /// A value as plotted: log10 of it on a log axis (plotters' own log axes label only
 /// whole decades, useless for a range within one), so ticks are placed evenly in
 /// log units and labelled with the value itself.
@@ -131,7 +216,7 @@ pub fn line_plot(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
         .margin(16)
         .x_label_area_size(50)
         .y_label_area_size(80)
-        .build_cartesian_2d(xr, yr)
+        .build_cartesian_2d(Ticked::new(xr, axes.log_x), Ticked::new(yr, axes.log_y))
         .map_err(|e| err(&e))?;
     let log_note = |label: &str, log: bool| {
         if log {
@@ -142,8 +227,6 @@ pub fn line_plot(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
     };
     chart
         .configure_mesh()
-        .x_labels(8)
-        .y_labels(8)
         .x_desc(log_note(&axes.x_label, axes.log_x))
         .y_desc(log_note(&axes.y_label, axes.log_y))
         .label_style(("sans-serif", 15))
@@ -201,6 +284,27 @@ mod tests {
         assert_eq!(tick(250.0), "250");
         assert_eq!(tick(0.125), "0.125");
         assert_eq!(tick(1.5e-4), "1.5e-4");
+    }
+
+    /// Log axes tick at 1, 2, 5 per decade (Fig. 6's σ_t: 5, 10, 20, 50), finer in a
+    /// narrow range; linear axes at a 1-2-5 step.
+    #[test]
+    fn ticks_are_round_values() {
+        let values = |r: Range<f64>, log: bool| -> Vec<String> {
+            key_points(&r, log)
+                .iter()
+                .map(|v| tick(if log { 10f64.powf(*v) } else { *v }))
+                .collect()
+        };
+        let log = |a: f64, b: f64| a.log10()..b.log10();
+        assert_eq!(values(log(4.0, 60.0), true), ["5", "10", "20", "50"]);
+        assert_eq!(
+            values(log(3e-5, 3e-4), true),
+            ["5.0e-5", "1.0e-4", "2.0e-4"]
+        );
+        assert_eq!(values(log(1.1, 4.5), true), ["2", "3", "4"]);
+        assert_eq!(values(log(1.05, 1.95), true), ["1.2", "1.4", "1.6", "1.8"]);
+        assert_eq!(values(0.05..1.02, false), ["0.2", "0.4", "0.6", "0.8", "1"]);
     }
 
     #[test]

@@ -69,6 +69,11 @@ pub struct TableOptions {
     pub factor: Option<f32>,
     /// `None`: no Mitsuba 3 rows.
     pub mitsuba: Option<MitsubaRunner>,
+    /// A `regularized_difference` row at each of these fixed factors (the sweeps' rows
+    /// to compare the pilot's choice with).
+    pub difference_factors: Vec<f32>,
+    /// Methods not to run.
+    pub skip: Vec<Method>,
     pub seed: u64,
     pub write_png: bool,
     /// One line per step on stderr.
@@ -83,6 +88,8 @@ pub enum Method {
     /// The difference predictor with the factor chosen by the pilot, temporal and
     /// spatial filtering (what `mediareg regularize` does by default).
     RegularizedAuto,
+    /// The same at a fixed factor (`TableOptions::difference_factors`).
+    RegularizedDifference,
     Volpath,
     MitsubaVolpath,
 }
@@ -93,6 +100,7 @@ impl Method {
             Method::Regularized => "regularized",
             Method::RegularizedSpatial => "regularized_spatial",
             Method::RegularizedAuto => "regularized_auto",
+            Method::RegularizedDifference => "regularized_difference",
             Method::Volpath => "volpath",
             Method::MitsubaVolpath => "mitsuba_volpath",
         }
@@ -114,6 +122,9 @@ pub struct Row {
     pub image: String,
     /// The reference, relative to the JSON file.
     pub reference: String,
+    /// The regularized rows: the source factor α_s / α_t per channel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub factor: Option<[f32; 3]>,
     /// `regularized`: frames rendered, and the seconds of the whole sequence.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sequence_frames: Option<usize>,
@@ -443,20 +454,26 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         }
     };
     let mut push = |method: Method,
+                    factor: Option<[f32; 3]>,
                     img: &Image,
                     spp: u32,
                     seconds: f64,
                     sequence: Option<(usize, f64)>|
      -> Result<()> {
-        let file = opts.out.join(format!("{tag}_{}.exr", method.as_str()));
+        let name_of = match (method, factor) {
+            (Method::RegularizedDifference, Some(f)) => {
+                format!("{}_factor{}", method.as_str(), f[0])
+            }
+            _ => method.as_str().to_string(),
+        };
+        let file = opts.out.join(format!("{tag}_{name_of}.exr"));
         image::write_exr(&file, img)?;
         if opts.write_png {
             image::write_png(&file.with_extension("png"), img)?;
         }
         let (mse, mse_corrected) = mse_against(img, &reference.mean, &reference.var);
         log(format!(
-            "{}: {spp} spp, {seconds:.2} s, MSE {mse:.4e} (corrected {mse_corrected:.4e})",
-            method.as_str()
+            "{name_of}: {spp} spp, {seconds:.2} s, MSE {mse:.4e} (corrected {mse_corrected:.4e})"
         ));
         run.rows.push(Row {
             scene: name.to_string(),
@@ -467,6 +484,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             mse_corrected,
             image: relative_to(&file, &opts.out),
             reference: ref_rel.clone(),
+            factor,
             sequence_frames: sequence.map(|s| s.0),
             sequence_seconds: sequence.map(|s| s.1),
         });
@@ -474,16 +492,18 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
     };
 
     // Plain volpath at the target albedo.
-    let spp = match calibrate(&RenderOptions::default()) {
-        Some(per_spp) => spp_for(budget_seconds(opts.budget), per_spp),
-        None => budget_spp(opts.budget),
-    };
-    let r = render(
-        &scene,
-        &scene.shot.with(spp, seed),
-        &RenderOptions::default(),
-    );
-    push(Method::Volpath, &r.image, spp, r.stats.seconds, None)?;
+    if !opts.skip.contains(&Method::Volpath) {
+        let spp = match calibrate(&RenderOptions::default()) {
+            Some(per_spp) => spp_for(budget_seconds(opts.budget), per_spp),
+            None => budget_spp(opts.budget),
+        };
+        let r = render(
+            &scene,
+            &scene.shot.with(spp, seed),
+            &RenderOptions::default(),
+        );
+        push(Method::Volpath, None, &r.image, spp, r.stats.seconds, None)?;
+    }
 
     // The regularized method: temporal (the paper), then single-frame spatial.
     let path = orbit_about_centre(opts, &scene).unwrap_or_else(|| {
@@ -513,11 +533,29 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
     }
     .with_albedo(&scene, medium, target_albedo * factor);
     let per_spp_gradient = calibrate(&at_source);
-    for (method, ropts, seed_offset) in [
+    let fixed: Vec<regularize::Options> = opts
+        .difference_factors
+        .iter()
+        .map(|&f| regularize::Options {
+            factor: f,
+            auto_factor: None,
+            ..auto.clone()
+        })
+        .collect();
+    let runs = [
         (Method::Regularized, &temporal, 100u64),
         (Method::RegularizedSpatial, &spatial, 200u64),
         (Method::RegularizedAuto, &auto, 300u64),
-    ] {
+    ]
+    .into_iter()
+    .chain(
+        fixed
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (Method::RegularizedDifference, o, 400 + i as u64)),
+    )
+    .filter(|(method, ..)| !opts.skip.contains(method));
+    for (method, ropts, seed_offset) in runs {
         let spp = match per_spp_gradient {
             Some(per_spp) => {
                 // The denoising and prediction cost comes out of the frame's budget:
@@ -558,7 +596,12 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             + r.timings.pilot / r.frames_rendered as f64;
         let sequence =
             (method != Method::RegularizedSpatial).then_some((r.frames_rendered, sequence_seconds));
-        push(method, &r.predicted, spp, seconds, sequence)?;
+        let (source, target) = (r.albedos.source.to_array(), r.albedos.target.to_array());
+        let factor = [0, 1, 2].map(|c| match target[c] > 0.0 {
+            true => source[c] / target[c],
+            false => 1.0,
+        });
+        push(method, Some(factor), &r.predicted, spp, seconds, sequence)?;
     }
 
     // Mitsuba 3 on the same file.
@@ -601,6 +644,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
                         mse_corrected,
                         image: relative_to(&file, &opts.out),
                         reference: ref_rel.clone(),
+                        factor: None,
                         sequence_frames: None,
                         sequence_seconds: None,
                     });
