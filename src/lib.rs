@@ -12,6 +12,7 @@ pub mod integrator;
 pub mod medium;
 pub mod regularize;
 pub mod report;
+pub mod sampling;
 pub mod scene;
 pub mod xml;
 

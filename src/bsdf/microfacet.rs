@@ -176,7 +176,7 @@ impl Microfacet {
             }
             MicrofacetType::Ggx => {
                 // Heitz 2017: a concentric-disk point, squashed toward the visible half.
-                let (x, y0) = crate::geometry::shape::square_to_uniform_disk_concentric(u);
+                let (x, y0) = crate::sampling::warp::square_to_uniform_disk_concentric(u);
                 let s = 0.5 * (1.0 + cos_theta_i);
                 let y = (1.0 - x * x).max(0.0).sqrt() * (1.0 - s) + y0 * s;
                 let z = (1.0 - x * x - y * y).max(0.0).sqrt();

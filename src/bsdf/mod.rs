@@ -17,6 +17,7 @@ use std::f32::consts::FRAC_1_PI;
 use glam::{Vec2, Vec3, Vec3A};
 
 use crate::geometry::accel::ShadowPass;
+use crate::sampling::warp::square_to_cosine_hemisphere;
 
 pub use conductor::{Conductor, RoughConductor};
 pub use dielectric::{Dielectric, RoughDielectric, ThinDielectric};
@@ -224,13 +225,6 @@ impl Bsdf {
 
 fn flip(v: Vec3A) -> Vec3A {
     Vec3A::new(v.x, v.y, -v.z)
-}
-
-/// Malley's method on the concentric disk; pdf = cos θ / π.
-pub fn square_to_cosine_hemisphere(s: Vec2) -> Vec3A {
-    let (x, y) = crate::geometry::shape::square_to_uniform_disk_concentric(s);
-    let z = (1.0 - x * x - y * y).max(0.0).sqrt();
-    Vec3A::new(x, y, z)
 }
 
 #[cfg(test)]

@@ -21,7 +21,8 @@ use rayon::prelude::*;
 
 use super::dielectric::fresnel;
 use super::microfacet::{eval_reflectance, eval_transmittance, reflect, Microfacet};
-use super::{square_to_cosine_hemisphere, BsdfSample, Texture};
+use super::{BsdfSample, Texture};
+use crate::sampling::warp::square_to_cosine_hemisphere;
 
 #[derive(Clone, Debug)]
 pub struct Plastic {
@@ -362,7 +363,7 @@ mod tests {
     #[test]
     fn white_plastic_does_not_create_energy() {
         let b = Plastic::new(1.9, Texture::Constant(Vec3::ONE), None, false);
-        let mut rng = crate::integrator::sampler::Pcg32::for_pixel(1, 2);
+        let mut rng = crate::sampling::Pcg32::for_pixel(1, 2);
         for cos in [0.2f32, 0.6, 1.0] {
             let wi = Vec3A::new((1.0 - cos * cos).sqrt(), 0.0, cos);
             let n = 50_000;

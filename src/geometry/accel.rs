@@ -784,8 +784,9 @@ impl Accel {
 mod tests {
     use super::*;
     use crate::geometry::mesh::{cube, TriangleMesh};
-    use crate::geometry::shape::{square_to_uniform_sphere, Planar, Sphere};
-    use crate::integrator::sampler::Pcg32;
+    use crate::geometry::shape::{Planar, Sphere};
+    use crate::sampling::warp::square_to_uniform_sphere;
+    use crate::sampling::Pcg32;
     use glam::{Mat3A, Mat4, Vec3};
     use std::path::Path;
 

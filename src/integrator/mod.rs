@@ -7,7 +7,6 @@
 
 pub mod direct;
 pub mod path;
-pub mod sampler;
 pub mod volpath;
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -17,10 +16,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::geometry::{offset_point, SHADOW_EPSILON};
+use crate::image::Image;
+use crate::sampling::Pcg32;
 use crate::scene::film::ImageBlock;
 use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene, SurfaceInteraction};
-use sampler::Pcg32;
 
 /// The block side: 32, or smaller for a small image so that there are at least
 /// `MIN_BLOCKS` blocks to share between threads (a 64×64 film in four 32×32 blocks
@@ -104,14 +104,6 @@ pub(crate) fn skip_emitters(
         tmax -= (o2 - o).length();
         o = o2;
     }
-}
-
-/// A rendered image: the crop window, row-major linear RGB.
-#[derive(Clone, Debug)]
-pub struct Image {
-    pub width: usize,
-    pub height: usize,
-    pub pixels: Vec<[f32; 3]>,
 }
 
 #[derive(Clone, Debug)]

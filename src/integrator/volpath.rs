@@ -49,13 +49,13 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::path::mis_weight;
-use super::sampler::Pcg32;
 use super::{sample_light_at_surface, skip_emitters, PathSettings};
 use crate::bsdf::Bsdf;
 use crate::geometry::accel::{Crossing, CrossingList, Crossings};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
 use crate::medium::{transmittance, HomogeneousMedium};
+use crate::sampling::mis_weight;
+use crate::sampling::Pcg32;
 use crate::scene::{Scene, ShapeInfo, SurfaceInteraction};
 
 /// Null-boundary crossings a shadow ray may make before it is treated as blocked
@@ -588,7 +588,7 @@ fn mean(v: Vec3) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::shape::square_to_uniform_sphere;
+    use crate::sampling::warp::square_to_uniform_sphere;
     use crate::scene::build::BuildOverrides;
 
     /// Two null cubes around media (one chromatic and turned) and a blocking cube, in
