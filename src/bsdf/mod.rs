@@ -8,6 +8,7 @@
 pub mod bitmap;
 pub mod conductor;
 pub mod dielectric;
+pub mod fresnel;
 pub mod microfacet;
 pub mod plastic;
 pub mod texture;
