@@ -14,6 +14,7 @@ pub mod regularize;
 pub mod report;
 pub mod sampling;
 pub mod scene;
+pub mod texture;
 pub mod xml;
 
 use std::path::Path;

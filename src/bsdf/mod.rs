@@ -5,13 +5,11 @@
 //! All directions are in the local shading frame (z = shading normal), `wi` points away
 //! from the surface toward where the path came from, as in Mitsuba.
 
-pub mod bitmap;
 pub mod conductor;
 pub mod dielectric;
 pub mod fresnel;
 pub mod microfacet;
 pub mod plastic;
-pub mod texture;
 
 use std::f32::consts::FRAC_1_PI;
 
@@ -20,10 +18,10 @@ use glam::{Vec2, Vec3, Vec3A};
 use crate::geometry::accel::ShadowPass;
 use crate::sampling::warp::square_to_cosine_hemisphere;
 
+use crate::texture::Texture;
 pub use conductor::{Conductor, RoughConductor};
 pub use dielectric::{Dielectric, RoughDielectric, ThinDielectric};
 pub use plastic::{Plastic, RoughPlastic};
-pub use texture::Texture;
 
 #[derive(Clone, Debug)]
 pub enum Bsdf {

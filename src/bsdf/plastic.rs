@@ -21,8 +21,9 @@ use rayon::prelude::*;
 
 use super::fresnel::{fresnel, fresnel_diffuse_reflectance, reflect};
 use super::microfacet::{eval_reflectance, eval_transmittance, Microfacet};
-use super::{BsdfSample, Texture};
+use super::BsdfSample;
 use crate::sampling::warp::square_to_cosine_hemisphere;
+use crate::texture::Texture;
 
 #[derive(Clone, Debug)]
 pub struct Plastic {

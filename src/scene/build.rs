@@ -12,11 +12,10 @@ use super::film::{Film, Rfilter};
 use super::props::Props;
 use super::shot::Shot;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
-use crate::bsdf::bitmap::{read_texels, Bitmap, FilterType, WrapMode};
 use crate::bsdf::dielectric::named_ior;
 use crate::bsdf::microfacet::{Microfacet, MicrofacetType};
 use crate::bsdf::{
-    Bsdf, Conductor, Dielectric, Plastic, RoughConductor, RoughDielectric, RoughPlastic, Texture,
+    Bsdf, Conductor, Dielectric, Plastic, RoughConductor, RoughDielectric, RoughPlastic,
     ThinDielectric,
 };
 use crate::emitter::envmap::EnvMap;
@@ -34,6 +33,8 @@ use crate::geometry::Bounds;
 use crate::geometry::RAY_EPSILON;
 use crate::medium::{HomogeneousMedium, Phase};
 use crate::scene::spectrum::SpectrumUse;
+use crate::texture::bitmap::{read_texels, Bitmap, FilterType, WrapMode};
+use crate::texture::Texture;
 use crate::xml::description::{ObjId, ObjectKind, SceneDescription, Value};
 use crate::xml::load::resolve_path;
 
