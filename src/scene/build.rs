@@ -36,7 +36,7 @@ use crate::scene::spectrum::SpectrumUse;
 use crate::texture::bitmap::{read_texels, Bitmap, FilterType, WrapMode};
 use crate::texture::Texture;
 use crate::xml::description::{ObjId, ObjectKind, SceneDescription, Value};
-use crate::xml::load::resolve_path;
+use crate::xml::resolve::resolve_path;
 
 /// Mitsuba's `xyz_to_srgb` applied to XYZ = (1, 1, 1): in RGB mode a constant
 /// `<spectrum value="v"/>` given to an emitter becomes `v` times this color

@@ -170,7 +170,7 @@ impl SceneDescription {
         for o in &self.objects {
             for p in &o.props {
                 if let (true, Value::String(name)) = (p.name == "filename", &p.value) {
-                    if let Some(path) = super::load::resolve_path(&self.search_path, name) {
+                    if let Some(path) = super::resolve::resolve_path(&self.search_path, name) {
                         out.push(path);
                     }
                 }

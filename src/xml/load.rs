@@ -9,6 +9,7 @@ use glam::{DMat4, DVec3};
 
 use super::description::{Child, ObjId, Object, ObjectKind, Property, SceneDescription, Value};
 use super::element::{read_file, Element};
+use super::resolve::resolve_path;
 use super::transform;
 use crate::error::{err_at, Loc, Result, SceneError};
 
@@ -116,16 +117,6 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<SceneDescription> {
         search_path: loader.search_path,
         notes: loader.notes,
     })
-}
-
-/// Resolves a relative file name like Mitsuba's file resolver: the scene's folder first,
-/// then each `-a` folder in order. Absolute names are taken as they are.
-pub fn resolve_path(search_path: &[PathBuf], name: &str) -> Option<PathBuf> {
-    let p = Path::new(name);
-    if p.is_absolute() {
-        return p.exists().then(|| p.to_path_buf());
-    }
-    search_path.iter().map(|d| d.join(p)).find(|c| c.exists())
 }
 
 fn canonical(p: &Path) -> PathBuf {
