@@ -16,7 +16,7 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::sample_light_at_surface;
+use super::emitters::sample_light_at_surface;
 use crate::geometry::offset_point;
 use crate::sampling::mis_weight;
 use crate::sampling::Pcg32;

@@ -8,7 +8,7 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::{sample_light_at_surface, skip_emitters};
+use super::emitters::{sample_light_at_surface, skip_emitters};
 use crate::geometry::offset_point;
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;

@@ -49,7 +49,7 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::{sample_light_at_surface, skip_emitters, PathSettings};
+use super::emitters::{sample_light_at_surface, skip_emitters};
 use crate::bsdf::Bsdf;
 use crate::geometry::accel::{Crossing, CrossingList, Crossings};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
@@ -311,6 +311,14 @@ impl Gradient {
             _ => (albedo, Vec3::ZERO),
         }
     }
+}
+
+/// What a render fixes for all its paths besides the scene: each medium's albedo (the
+/// scene's or the render's override) and the derivative asked for.
+#[derive(Clone, Copy, Debug)]
+pub struct PathSettings<'a> {
+    pub albedo: &'a [Vec3],
+    pub gradient: Gradient,
 }
 
 /// One radiance sample along the camera ray (o, d), the camera sitting in
