@@ -9,6 +9,7 @@ pub mod error;
 pub mod geometry;
 pub mod image;
 pub mod integrator;
+pub mod load;
 pub mod medium;
 pub mod regularize;
 pub mod report;
@@ -17,17 +18,5 @@ pub mod scene;
 pub mod texture;
 pub mod xml;
 
-use std::path::Path;
-
 pub use error::{Loc, SceneError};
-pub use scene::build::BuildOverrides;
-
-/// Loads and builds a scene.
-pub fn load_scene(
-    path: &Path,
-    opts: &xml::LoadOptions,
-    overrides: &BuildOverrides,
-) -> Result<scene::Scene, SceneError> {
-    let desc = xml::load_file(path, opts)?;
-    scene::build_scene(&desc, overrides)
-}
+pub use load::{load_scene, BuildOverrides};

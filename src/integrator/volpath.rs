@@ -596,8 +596,8 @@ fn mean(v: Vec3) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::load::BuildOverrides;
     use crate::sampling::warp::square_to_uniform_sphere;
-    use crate::scene::build::BuildOverrides;
 
     /// Two null cubes around media (one chromatic and turned) and a blocking cube, in
     /// the BVH together.

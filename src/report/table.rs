@@ -33,11 +33,12 @@ use super::paper::table1_row;
 use crate::image::Image;
 use crate::integrator::volpath::Gradient;
 use crate::integrator::{render, RenderOptions};
+use crate::load::build_scene;
 use crate::regularize::pipeline::PilotSize;
 use crate::regularize::sequence::{image_centre_point, CameraPath};
 use crate::regularize::spatial::BilateralParams;
 use crate::regularize::{self, CBeta, Reproject};
-use crate::scene::{build_scene, IntegratorKind, Scene};
+use crate::scene::{IntegratorKind, Scene};
 use crate::{image, xml, BuildOverrides};
 
 /// How much each method may spend.
