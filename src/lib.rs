@@ -1,7 +1,14 @@
 //! mediareg: a renderer for participating media that reads Mitsuba 3 scene files.
 //!
-//! Data flows one way: `xml` (file → `SceneDescription`) → `scene::build_scene`
-//! (description → `Scene`) → `integrator::render` (→ `Image`) → `image` (EXR/PNG).
+//! Data flows one way: `xml` (file → `SceneDescription`) → `load::build_scene`
+//! (plugins → the plain objects of a `scene::SceneParts`) → `Scene::new` (BVH,
+//! clearance, emitter selection: the render state) → `integrator::render`
+//! (→ `image::Image`) → `image` (EXR/PNG); `regularize` and `report` drive renders.
+//!
+//! Modules import only from those below them, lowest first: `error`, `sampling`,
+//! `image`, `xml`, `geometry`, `texture`, `medium`, `bsdf`, `emitter`, `scene`, `load`,
+//! `integrator`, `regularize`, `report` (`tests/layering.rs` holds the list and checks
+//! it, with no import circle inside a module and no file over 800 lines).
 
 pub mod bsdf;
 pub mod emitter;

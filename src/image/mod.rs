@@ -1,5 +1,5 @@
-//! Image files: linear float32 RGB EXR (row 0 at the top, as Mitsuba writes them) and a
-//! tonemapped sRGB PNG preview. Files are written to a temporary name and renamed, so an
+//! Images: [`Image`] (what a render produces) and its files, linear float32 RGB EXR
+//! (row 0 at the top, as Mitsuba writes them) and a tonemapped sRGB PNG preview. Files are written to a temporary name and renamed, so an
 //! interrupted run never leaves a corrupt image.
 
 pub mod stats;

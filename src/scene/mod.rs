@@ -1,4 +1,6 @@
-//! The built scene: everything the integrator needs, nothing about XML.
+//! The built scene: everything the integrator needs, nothing about XML. Made from
+//! plain objects by [`Scene::new`] (`prepare`), whether `load` translated them from a
+//! file or a test built them by hand.
 
 pub mod camera;
 pub mod cost;

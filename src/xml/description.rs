@@ -1,6 +1,6 @@
 //! The scene *description*: what the file says, and nothing more. A tree (really a DAG,
 //! because of `<ref>`) of plugin objects with typed properties, each with its position in
-//! the source. `scene::build` turns it into render state.
+//! the source. `load` turns it into render state.
 
 use glam::{DMat4, DVec3};
 

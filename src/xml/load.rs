@@ -669,7 +669,7 @@ pub fn parse_float(s: &str, loc: &Loc) -> Result<f64> {
 
 /// `"λ₁:v₁, λ₂:v₂, …"`: at least two pairs, wavelengths (nm) strictly increasing, values
 /// finite and nonnegative (Mitsuba turns the list into RGB by integrating it; see
-/// `scene::spectrum`).
+/// `load::spectrum`).
 fn parse_sampled_spectrum(s: &str, loc: &Loc) -> Result<Vec<(f64, f64)>> {
     let mut pairs = Vec::new();
     for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {
