@@ -171,15 +171,16 @@ fn paths_after(s: &str) -> Vec<Vec<String>> {
 }
 
 /// Every absolute module path a file names: `crate::x::…` as is, `super::…` resolved
-/// from the module the line sits in (a `mod tests` block is one level below its file).
+/// from the module the line sits in (a test module is one level below its file).
 fn references(f: &SourceFile) -> Vec<Vec<String>> {
-    // Everything after `mod tests {` is taken as inside it: the project keeps test
-    // modules last in their file.
+    // Everything after an inline `#[cfg(test)] mod name {` is taken as inside it: the
+    // project keeps test modules last in their file.
     let text_of = |lines: &[String]| lines.join("\n");
-    let test_start = f
-        .lines
-        .iter()
-        .position(|l| l.trim_start().starts_with("mod tests"))
+    let test_start = (1..f.lines.len())
+        .find(|&i| {
+            let l = f.lines[i].trim();
+            f.lines[i - 1].trim() == "#[cfg(test)]" && l.starts_with("mod ") && l.ends_with('{')
+        })
         .unwrap_or(f.lines.len());
     let mut refs = Vec::new();
     for (text, in_tests) in [
@@ -188,7 +189,7 @@ fn references(f: &SourceFile) -> Vec<Vec<String>> {
     ] {
         let mut scope = f.module.clone();
         if in_tests {
-            scope.push("tests".into());
+            scope.push("(test module)".into());
         }
         let bytes = text.as_bytes();
         let mut i = 0;
@@ -220,7 +221,7 @@ fn references(f: &SourceFile) -> Vec<Vec<String>> {
             }
         }
     }
-    refs.retain(|r| !r.is_empty() && r[0] != "tests");
+    refs.retain(|r| !r.is_empty());
     refs
 }
 
