@@ -9,8 +9,8 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
 
+use mediareg::image::Image;
 use mediareg::integrator::volpath::Gradient;
-use mediareg::integrator::Image;
 use mediareg::regularize::pipeline::PilotSize;
 use mediareg::regularize::sequence::{image_centre_point, CameraPath};
 use mediareg::regularize::spatial::BilateralParams;

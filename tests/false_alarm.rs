@@ -30,7 +30,7 @@ use std::path::Path;
 
 use common::{layout, render_chunks, root, ALPHA, FALSE_ALARM};
 use mediareg::image::stats::{compare, Estimate, PixelLayout};
-use mediareg::integrator::sampler::Pcg32;
+use mediareg::sampling::Pcg32;
 
 /// Renders in each scene's pool, and chunks per estimate (as the equivalence tests).
 const POOL: usize = 120;

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use mediareg::geometry::mesh::{read_obj, read_ply};
-use mediareg::scene::build_scene;
+use mediareg::load::build_scene;
 use mediareg::BuildOverrides;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};

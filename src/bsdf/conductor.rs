@@ -4,7 +4,8 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::microfacet::{reflect, Microfacet};
+use super::fresnel::{fresnel_conductor, reflect};
+use super::microfacet::Microfacet;
 use super::BsdfSample;
 
 #[derive(Clone, Debug, PartialEq)]
@@ -106,48 +107,9 @@ impl RoughConductor {
     }
 }
 
-/// Unpolarized Fresnel reflectance at a conductor with index η + iκ, for cos θ_i > 0
-/// (the exact formula, e.g. pbrt 3rd ed. §8.2.1, as Mitsuba's `fresnel_conductor`):
-///   a² + b² = √((η² − κ² − sin²θ)² + 4η²κ²),  a = √((a² + b² + η² − κ² − sin²θ) / 2)
-///   R_s = (a² + b² + cos²θ − 2a cosθ) / (a² + b² + cos²θ + 2a cosθ)
-///   R_p = R_s (cos²θ (a² + b²) + sin⁴θ − 2a cosθ sin²θ) / (… + 2a cosθ sin²θ)
-pub fn fresnel_conductor(cos_theta_i: f32, eta: f32, k: f32) -> f32 {
-    let (c, eta, k) = (cos_theta_i.clamp(0.0, 1.0) as f64, eta as f64, k as f64);
-    let c2 = c * c;
-    let s2 = 1.0 - c2;
-    let t1 = eta * eta - k * k - s2;
-    let a2pb2 = (t1 * t1 + 4.0 * eta * eta * k * k).max(0.0).sqrt();
-    let a = (0.5 * (a2pb2 + t1)).max(0.0).sqrt();
-    let term1 = a2pb2 + c2;
-    let term2 = 2.0 * c * a;
-    let r_s = (term1 - term2) / (term1 + term2);
-    let term3 = a2pb2 * c2 + s2 * s2;
-    let term4 = term2 * s2;
-    let r_p = r_s * (term3 - term4) / (term3 + term4);
-    (0.5 * (r_s + r_p)) as f32
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// η = 0, κ = 1 reflects everything at every angle; a dielectric-like conductor
-    /// (κ = 0) at normal incidence gives ((η − 1)/(η + 1))²; at grazing incidence 1.
-    #[test]
-    fn fresnel_conductor_known_values() {
-        for c in [1.0, 0.7, 0.3, 0.05] {
-            assert!(
-                (fresnel_conductor(c, 0.0, 1.0) - 1.0).abs() < 1e-6,
-                "cos {c}"
-            );
-        }
-        let r0 = ((1.5f32 - 1.0) / 2.5).powi(2);
-        assert!((fresnel_conductor(1.0, 1.5, 0.0) - r0).abs() < 1e-6);
-        assert!((fresnel_conductor(1e-6, 0.2, 3.0) - 1.0).abs() < 1e-4);
-        // Gold-like (η 0.2, κ 3.6) at normal incidence: ((η−1)² + κ²)/((η+1)² + κ²).
-        let want = ((0.2f32 - 1.0).powi(2) + 3.6 * 3.6) / ((1.2f32).powi(2) + 3.6 * 3.6);
-        assert!((fresnel_conductor(1.0, 0.2, 3.6) - want).abs() < 1e-6);
-    }
 
     #[test]
     fn mirror_reflects_about_the_normal_front_side_only() {

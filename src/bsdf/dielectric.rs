@@ -3,7 +3,8 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::microfacet::{reflect, refract, Microfacet};
+use super::fresnel::{fresnel, reflect, refract};
+use super::microfacet::Microfacet;
 use super::BsdfSample;
 
 #[derive(Clone, Debug)]
@@ -45,33 +46,6 @@ pub const NAMED_IOR: &[(&str, f32)] = &[
 pub fn named_ior(name: &str) -> Option<f32> {
     let lower = name.to_ascii_lowercase();
     NAMED_IOR.iter().find(|(n, _)| *n == lower).map(|&(_, v)| v)
-}
-
-/// Unpolarized Fresnel reflectance. Returns (R, cos θ_t, η_it, η_ti), with cos θ_t signed
-/// opposite to cos θ_i, exactly as Mitsuba's `fresnel(cos_theta_i, eta)`.
-pub fn fresnel(cos_theta_i: f32, eta: f32) -> (f32, f32, f32, f32) {
-    let outside = cos_theta_i >= 0.0;
-    let (eta_it, eta_ti) = if outside {
-        (eta, 1.0 / eta)
-    } else {
-        (1.0 / eta, eta)
-    };
-    let cos_t_sqr = 1.0 - (1.0 - cos_theta_i * cos_theta_i) * eta_ti * eta_ti;
-    let ci = cos_theta_i.abs();
-    let ct = cos_t_sqr.max(0.0).sqrt();
-    let r = if eta == 1.0 {
-        0.0
-    } else if ci == 0.0 {
-        1.0
-    } else {
-        let a_s = (ci - eta_it * ct) / (ci + eta_it * ct);
-        let a_p = (ct - eta_it * ci) / (ct + eta_it * ci);
-        0.5 * (a_s * a_s + a_p * a_p)
-    };
-    // Total internal reflection gives cos_t_sqr < 0: then r = 1 by the formulas above.
-    let r = if cos_t_sqr <= 0.0 { 1.0 } else { r };
-    let cos_theta_t = if cos_theta_i >= 0.0 { -ct } else { ct };
-    (r, cos_theta_t, eta_it, eta_ti)
 }
 
 impl Dielectric {
@@ -267,15 +241,6 @@ impl RoughDielectric {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn fresnel_normal_incidence_and_tir() {
-        let (r, ct, _, _) = fresnel(1.0, 1.5);
-        assert!((r - 0.04).abs() < 1e-6 && (ct + 1.0).abs() < 1e-6);
-        // From inside glass at grazing angles: total internal reflection.
-        let (r, _, _, _) = fresnel(-0.2, 1.5);
-        assert_eq!(r, 1.0);
-    }
 
     #[test]
     fn refraction_obeys_snell() {

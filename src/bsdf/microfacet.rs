@@ -13,7 +13,7 @@ use std::f64::consts::PI;
 use glam::{Vec2, Vec3A};
 use statrs::function::erf::{erf, erf_inv};
 
-use super::dielectric::fresnel;
+use super::fresnel::{fresnel, reflect, refract};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MicrofacetType {
@@ -36,18 +36,6 @@ pub struct Microfacet {
     pub kind: MicrofacetType,
     pub alpha_u: f32,
     pub alpha_v: f32,
-}
-
-/// Reflection of `wi` about the microfacet normal `m`: 2 (wi·m) m − wi.
-#[inline]
-pub fn reflect(wi: Vec3A, m: Vec3A) -> Vec3A {
-    m * (2.0 * wi.dot(m)) - wi
-}
-
-/// Refraction of `wi` through the microfacet `m`, with cos θ_t and η_ti from `fresnel`.
-#[inline]
-pub fn refract(wi: Vec3A, m: Vec3A, cos_theta_t: f32, eta_ti: f32) -> Vec3A {
-    m * (wi.dot(m) * eta_ti + cos_theta_t) - wi * eta_ti
 }
 
 impl Microfacet {
@@ -176,7 +164,7 @@ impl Microfacet {
             }
             MicrofacetType::Ggx => {
                 // Heitz 2017: a concentric-disk point, squashed toward the visible half.
-                let (x, y0) = crate::geometry::shape::square_to_uniform_disk_concentric(u);
+                let (x, y0) = crate::sampling::warp::square_to_uniform_disk_concentric(u);
                 let s = 0.5 * (1.0 + cos_theta_i);
                 let y = (1.0 - x * x).max(0.0).sqrt() * (1.0 - s) + y0 * s;
                 let z = (1.0 - x * x - y * y).max(0.0).sqrt();

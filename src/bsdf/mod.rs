@@ -5,23 +5,23 @@
 //! All directions are in the local shading frame (z = shading normal), `wi` points away
 //! from the surface toward where the path came from, as in Mitsuba.
 
-pub mod bitmap;
 pub mod conductor;
 pub mod dielectric;
+pub mod fresnel;
 pub mod microfacet;
 pub mod plastic;
-pub mod texture;
 
 use std::f32::consts::FRAC_1_PI;
 
 use glam::{Vec2, Vec3, Vec3A};
 
 use crate::geometry::accel::ShadowPass;
+use crate::sampling::warp::square_to_cosine_hemisphere;
 
+use crate::texture::Texture;
 pub use conductor::{Conductor, RoughConductor};
 pub use dielectric::{Dielectric, RoughDielectric, ThinDielectric};
 pub use plastic::{Plastic, RoughPlastic};
-pub use texture::Texture;
 
 #[derive(Clone, Debug)]
 pub enum Bsdf {
@@ -224,13 +224,6 @@ impl Bsdf {
 
 fn flip(v: Vec3A) -> Vec3A {
     Vec3A::new(v.x, v.y, -v.z)
-}
-
-/// Malley's method on the concentric disk; pdf = cos θ / π.
-pub fn square_to_cosine_hemisphere(s: Vec2) -> Vec3A {
-    let (x, y) = crate::geometry::shape::square_to_uniform_disk_concentric(s);
-    let z = (1.0 - x * x - y * y).max(0.0).sqrt();
-    Vec3A::new(x, y, z)
 }
 
 #[cfg(test)]

@@ -19,9 +19,11 @@ use std::sync::Mutex;
 
 use rayon::prelude::*;
 
-use super::dielectric::fresnel;
-use super::microfacet::{eval_reflectance, eval_transmittance, reflect, Microfacet};
-use super::{square_to_cosine_hemisphere, BsdfSample, Texture};
+use super::fresnel::{fresnel, fresnel_diffuse_reflectance, reflect};
+use super::microfacet::{eval_reflectance, eval_transmittance, Microfacet};
+use super::BsdfSample;
+use crate::sampling::warp::square_to_cosine_hemisphere;
+use crate::texture::Texture;
 
 #[derive(Clone, Debug)]
 pub struct Plastic {
@@ -35,20 +37,6 @@ pub struct Plastic {
     fdr_int: f32,
     /// w_s, the specular lobe's share of the sampling weight.
     specular_weight: f32,
-}
-
-/// Diffuse Fresnel reflectance: the fraction of light arriving uniformly from a
-/// hemisphere that a smooth interface of relative index `eta` reflects. Mitsuba's fits:
-/// Egan and Hilgeman (1973) for η < 1, d'Eon and Irving (2011) otherwise.
-pub fn fresnel_diffuse_reflectance(eta: f32) -> f32 {
-    let inv = 1.0 / eta;
-    if eta < 1.0 {
-        0.0636 * inv + eta * (eta * -1.4399 + 0.7099) + 0.6681
-    } else {
-        // Horner in 1/η.
-        let c = [0.919317, -3.4793, 6.75335, -7.80989, 4.98554, -1.36881];
-        c.iter().rev().fold(0.0f32, |acc, &k| acc * inv + k)
-    }
 }
 
 impl Plastic {
@@ -304,26 +292,6 @@ mod tests {
         )
     }
 
-    /// The fits against the integral they approximate:
-    /// F_dr(η) = ∫ F(cos θ, η) 2 cos θ sin θ dθ over the hemisphere.
-    #[test]
-    fn diffuse_fresnel_matches_its_integral() {
-        for eta in [1.0 / 1.9, 1.0 / 1.5, 1.33, 1.5, 1.9] {
-            let n = 20_000;
-            let integral: f64 = (0..n)
-                .map(|i| {
-                    let mu = (i as f64 + 0.5) / n as f64;
-                    fresnel(mu as f32, eta).0 as f64 * 2.0 * mu / n as f64
-                })
-                .sum();
-            let fit = fresnel_diffuse_reflectance(eta) as f64;
-            assert!(
-                (fit - integral).abs() < 0.01,
-                "eta {eta}: fit {fit}, integral {integral}"
-            );
-        }
-    }
-
     /// Sampling agrees with evaluation: weight = f cos / pdf for the diffuse lobe, and the
     /// lobe probabilities add to one.
     #[test]
@@ -362,7 +330,7 @@ mod tests {
     #[test]
     fn white_plastic_does_not_create_energy() {
         let b = Plastic::new(1.9, Texture::Constant(Vec3::ONE), None, false);
-        let mut rng = crate::integrator::sampler::Pcg32::for_pixel(1, 2);
+        let mut rng = crate::sampling::Pcg32::for_pixel(1, 2);
         for cos in [0.2f32, 0.6, 1.0] {
             let wi = Vec3A::new((1.0 - cos * cos).sqrt(), 0.0, cos);
             let n = 50_000;

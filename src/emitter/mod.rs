@@ -11,7 +11,8 @@ use std::f32::consts::PI;
 
 use glam::{Mat3A, Vec2, Vec3, Vec3A};
 
-use crate::geometry::shape::{square_to_uniform_sphere, Geometry};
+use crate::geometry::shape::Geometry;
+use crate::sampling::warp::square_to_uniform_sphere;
 
 #[derive(Clone, Debug)]
 pub enum Emitter {

@@ -486,7 +486,7 @@ mod tests {
         let shapes = shapes();
         let bounds = scene_bounds(&shapes);
         let c = Clearance::build(&shapes, bounds, bounds);
-        let mut rng = crate::integrator::sampler::Pcg32::new(7, 1);
+        let mut rng = crate::sampling::Pcg32::new(7, 1);
         let lo = bounds.min - Vec3A::splat(1.0);
         let size = bounds.max - bounds.min + Vec3A::splat(2.0);
         let (mut useful, mut checked, n) = (0, 0, 20_000);
@@ -519,7 +519,7 @@ mod tests {
         // The cube's box only: the sphere and most of the disk lie outside the grid.
         let region = shapes[0].bounds();
         let c = Clearance::build(&shapes, region, bounds);
-        let mut rng = crate::integrator::sampler::Pcg32::new(9, 1);
+        let mut rng = crate::sampling::Pcg32::new(9, 1);
         let lo = bounds.min - Vec3A::splat(1.0);
         let size = bounds.max - bounds.min + Vec3A::splat(2.0);
         let mut positive = 0;

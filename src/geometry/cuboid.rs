@@ -266,8 +266,8 @@ impl Cuboid {
 mod tests {
     use super::*;
     use crate::geometry::mesh::cube;
-    use crate::geometry::shape::square_to_uniform_sphere;
-    use crate::integrator::sampler::Pcg32;
+    use crate::sampling::warp::square_to_uniform_sphere;
+    use crate::sampling::Pcg32;
     use glam::Mat3;
     use std::path::Path;
 

@@ -5,6 +5,7 @@ use glam::{Mat3A, Mat4, Vec2, Vec3A};
 
 use super::mesh::TriangleMesh;
 use super::Bounds;
+use crate::sampling::warp::{square_to_uniform_disk_concentric, square_to_uniform_sphere};
 
 /// Mitsuba's `sphere`: center + radius (after `to_world`, which must be a similarity).
 #[derive(Clone, Debug)]
@@ -102,23 +103,6 @@ impl Planar {
     }
 }
 
-/// Shirley–Chiu concentric map from the unit square to the unit disk.
-pub fn square_to_uniform_disk_concentric(s: Vec2) -> (f32, f32) {
-    let x = 2.0 * s.x - 1.0;
-    let y = 2.0 * s.y - 1.0;
-    if x == 0.0 && y == 0.0 {
-        return (0.0, 0.0);
-    }
-    use std::f32::consts::FRAC_PI_4;
-    let (r, phi) = if x.abs() > y.abs() {
-        (x, FRAC_PI_4 * (y / x))
-    } else {
-        (y, 2.0 * FRAC_PI_4 - FRAC_PI_4 * (x / y))
-    };
-    let (s, c) = phi.sin_cos();
-    (r * c, r * s)
-}
-
 /// A direction toward a sphere from [`Sphere::sample_cone`].
 #[derive(Clone, Copy, Debug)]
 pub struct ConeSample {
@@ -137,13 +121,6 @@ pub struct ConeSample {
 #[inline]
 fn cone_pdf(cos_max: f32) -> f32 {
     1.0 / (2.0 * std::f32::consts::PI * (1.0 - cos_max))
-}
-
-pub fn square_to_uniform_sphere(s: Vec2) -> Vec3A {
-    let z = 1.0 - 2.0 * s.y;
-    let r = (1.0 - z * z).max(0.0).sqrt();
-    let (sp, cp) = (2.0 * std::f32::consts::PI * s.x).sin_cos();
-    Vec3A::new(r * cp, r * sp, z)
 }
 
 impl Sphere {

@@ -1,5 +1,5 @@
-//! Image files: linear float32 RGB EXR (row 0 at the top, as Mitsuba writes them) and a
-//! tonemapped sRGB PNG preview. Files are written to a temporary name and renamed, so an
+//! Images: [`Image`] (what a render produces) and its files, linear float32 RGB EXR
+//! (row 0 at the top, as Mitsuba writes them) and a tonemapped sRGB PNG preview. Files are written to a temporary name and renamed, so an
 //! interrupted run never leaves a corrupt image.
 
 pub mod stats;
@@ -8,7 +8,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::integrator::Image;
+/// A rendered image: the crop window, row-major linear RGB.
+#[derive(Clone, Debug)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<[f32; 3]>,
+}
 
 fn temp_path(path: &Path) -> PathBuf {
     let name = path
@@ -112,7 +118,7 @@ pub fn read_exr(path: &Path) -> Result<Image> {
     )
     .with_context(|| format!("cannot read EXR {}", path.display()))?;
     let (width, height, pixels) = image.layer_data.channel_data.pixels;
-    Ok(crate::integrator::Image {
+    Ok(self::Image {
         width,
         height,
         pixels,

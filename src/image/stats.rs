@@ -444,14 +444,14 @@ mod tests {
     use super::*;
 
     fn noisy(seed: u64, n: usize, k: usize, offset: f32) -> Vec<Vec<[f32; 3]>> {
-        let mut rng = crate::integrator::sampler::Pcg32::for_pixel(seed, 0);
+        let mut rng = crate::sampling::Pcg32::for_pixel(seed, 0);
         (0..k)
             .map(|_| {
                 (0..n)
                     .map(|i| {
                         let base = 0.5 + 0.3 * ((i % 17) as f32 / 17.0);
                         // Sum of 12 uniforms − 6: approximately N(0, 1).
-                        let g = |r: &mut crate::integrator::sampler::Pcg32| {
+                        let g = |r: &mut crate::sampling::Pcg32| {
                             (0..12).map(|_| r.next_1d()).sum::<f32>() - 6.0
                         };
                         [

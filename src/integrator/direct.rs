@@ -16,10 +16,10 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::path::mis_weight;
-use super::sample_light_at_surface;
-use super::sampler::Pcg32;
+use super::emitters::sample_light_at_surface;
 use crate::geometry::offset_point;
+use crate::sampling::mis_weight;
+use crate::sampling::Pcg32;
 use crate::scene::Scene;
 
 /// One radiance sample along the camera ray (o, d).

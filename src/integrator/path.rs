@@ -8,22 +8,10 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::sampler::Pcg32;
-use super::{sample_light_at_surface, skip_emitters};
+use super::emitters::{sample_light_at_surface, skip_emitters};
 use crate::geometry::offset_point;
+use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
-
-/// Power heuristic with β = 2: `a² / (a² + b²)`, 0 when not finite.
-#[inline]
-pub fn mis_weight(a: f32, b: f32) -> f32 {
-    let (a2, b2) = (a * a, b * b);
-    let w = a2 / (a2 + b2);
-    if w.is_finite() {
-        w
-    } else {
-        0.0
-    }
-}
 
 /// Where the previous bounce happened, for MIS of emitter hits.
 #[derive(Clone, Copy)]

@@ -170,7 +170,7 @@ mod tests {
     /// g = ±0.999 (its cos θ cancels in the peak).
     #[test]
     fn hg_sampling_exact_near_the_peak() {
-        use crate::integrator::sampler::Pcg32;
+        use crate::sampling::Pcg32;
         use statrs::distribution::{ChiSquared, ContinuousCDF};
         let d_in = Vec3A::new(0.3, -0.4, 0.866).normalize();
         let n = 400_000usize;

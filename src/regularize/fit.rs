@@ -84,7 +84,7 @@ mod tests {
             target: Vec3::splat(0.95),
             sigma_t: Vec3::splat(10.0),
         };
-        let mut rng = crate::integrator::sampler::Pcg32::for_pixel(5, 0);
+        let mut rng = crate::sampling::Pcg32::for_pixel(5, 0);
         let n = 4000;
         let radiance: Vec<[f32; 3]> = (0..n).map(|_| [0.02 + 0.3 * rng.next_1d(); 3]).collect();
         let gradient: Vec<[f32; 3]> = radiance.iter().map(|r| [r[0] * 3.0; 3]).collect();

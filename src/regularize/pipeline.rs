@@ -23,8 +23,9 @@ use super::sequence::CameraPath;
 use super::spatial::{self, BilateralParams};
 use super::temporal::{self, Reprojection};
 use crate::error::SceneError;
+use crate::image::Image;
 use crate::integrator::volpath::Gradient;
-use crate::integrator::{render, Image, RenderOptions};
+use crate::integrator::{render, RenderOptions};
 use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene};
 

@@ -205,7 +205,7 @@ mod tests {
     #[test]
     fn smooths_noise_and_keeps_feature_edges() {
         let (w, h) = (32, 16);
-        let mut rng = crate::integrator::sampler::Pcg32::for_pixel(9, 0);
+        let mut rng = crate::sampling::Pcg32::for_pixel(9, 0);
         let truth = |x: usize| if x < w / 2 { 1.0f32 } else { -2.0 };
         let mut noisy = Vec::new();
         let mut features = Features {

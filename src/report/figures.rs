@@ -26,7 +26,7 @@ use super::table::{
     SceneJob, TableOptions, TableRun,
 };
 use crate::image;
-use crate::integrator::Image;
+use crate::image::Image;
 use crate::regularize;
 use crate::regularize::predict::Predictor;
 

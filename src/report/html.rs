@@ -15,7 +15,7 @@ use anyhow::{Context, Result};
 use super::output::{paper_cells, ratio_cells, RunInfo};
 use super::table::{Method, Row};
 use crate::image;
-use crate::integrator::Image;
+use crate::image::Image;
 
 /// Per pixel, |image − reference| averaged over channels, as a false-colour PNG on
 /// the scale [0, `scale`] (black → blue → red → yellow → white).

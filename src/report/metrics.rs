@@ -6,7 +6,7 @@
 //! so the MSE against the true image is estimated by the raw MSE minus the mean of v_R
 //! ("corrected"). Both are means over every pixel and channel.
 
-use crate::integrator::Image;
+use crate::image::Image;
 
 /// Mean of (a − b)² over pixels and channels (f64 accumulation).
 pub fn mse(a: &Image, b: &Image) -> f64 {

@@ -30,13 +30,15 @@ use sha2::{Digest, Sha256};
 use super::metrics::mse_against;
 use super::mitsuba::{MitsubaRunner, Unavailable};
 use super::paper::table1_row;
+use crate::image::Image;
 use crate::integrator::volpath::Gradient;
-use crate::integrator::{render, Image, RenderOptions};
+use crate::integrator::{render, RenderOptions};
+use crate::load::build_scene;
 use crate::regularize::pipeline::PilotSize;
 use crate::regularize::sequence::{image_centre_point, CameraPath};
 use crate::regularize::spatial::BilateralParams;
 use crate::regularize::{self, CBeta, Reproject};
-use crate::scene::{build_scene, IntegratorKind, Scene};
+use crate::scene::{IntegratorKind, Scene};
 use crate::{image, xml, BuildOverrides};
 
 /// How much each method may spend.

@@ -1,13 +1,13 @@
-//! The built scene: everything the integrator needs, nothing about XML.
+//! The built scene: everything the integrator needs, nothing about XML. Made from
+//! plain objects by [`Scene::new`] (`prepare`), whether `load` translated them from a
+//! file or a test built them by hand.
 
-pub mod build;
 pub mod camera;
 pub mod cost;
 pub mod film;
-pub mod props;
+pub mod prepare;
 pub mod ray_log;
 pub mod shot;
-pub mod spectrum;
 
 use glam::{Vec2, Vec3A};
 
@@ -23,7 +23,7 @@ use crate::medium::HomogeneousMedium;
 use ray_log::RayLog;
 use shot::Shot;
 
-pub use build::build_scene;
+pub use prepare::SceneParts;
 
 /// Which integrator the file asks for, with its settings.
 #[derive(Clone, Debug, PartialEq)]

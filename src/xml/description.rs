@@ -1,6 +1,6 @@
 //! The scene *description*: what the file says, and nothing more. A tree (really a DAG,
 //! because of `<ref>`) of plugin objects with typed properties, each with its position in
-//! the source. `scene::build` turns it into render state.
+//! the source. `load` turns it into render state.
 
 use glam::{DMat4, DVec3};
 
@@ -170,7 +170,7 @@ impl SceneDescription {
         for o in &self.objects {
             for p in &o.props {
                 if let (true, Value::String(name)) = (p.name == "filename", &p.value) {
-                    if let Some(path) = super::load::resolve_path(&self.search_path, name) {
+                    if let Some(path) = super::resolve::resolve_path(&self.search_path, name) {
                         out.push(path);
                     }
                 }

@@ -9,6 +9,7 @@ use glam::{DMat4, DVec3};
 
 use super::description::{Child, ObjId, Object, ObjectKind, Property, SceneDescription, Value};
 use super::element::{read_file, Element};
+use super::resolve::resolve_path;
 use super::transform;
 use crate::error::{err_at, Loc, Result, SceneError};
 
@@ -116,16 +117,6 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<SceneDescription> {
         search_path: loader.search_path,
         notes: loader.notes,
     })
-}
-
-/// Resolves a relative file name like Mitsuba's file resolver: the scene's folder first,
-/// then each `-a` folder in order. Absolute names are taken as they are.
-pub fn resolve_path(search_path: &[PathBuf], name: &str) -> Option<PathBuf> {
-    let p = Path::new(name);
-    if p.is_absolute() {
-        return p.exists().then(|| p.to_path_buf());
-    }
-    search_path.iter().map(|d| d.join(p)).find(|c| c.exists())
 }
 
 fn canonical(p: &Path) -> PathBuf {
@@ -678,7 +669,7 @@ pub fn parse_float(s: &str, loc: &Loc) -> Result<f64> {
 
 /// `"λ₁:v₁, λ₂:v₂, …"`: at least two pairs, wavelengths (nm) strictly increasing, values
 /// finite and nonnegative (Mitsuba turns the list into RGB by integrating it; see
-/// `scene::spectrum`).
+/// `load::spectrum`).
 fn parse_sampled_spectrum(s: &str, loc: &Loc) -> Result<Vec<(f64, f64)>> {
     let mut pairs = Vec::new();
     for item in s.split(',').map(str::trim).filter(|t| !t.is_empty()) {

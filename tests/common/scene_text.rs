@@ -3,7 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use mediareg::scene::{build_scene, Scene};
+use mediareg::load::build_scene;
+use mediareg::scene::Scene;
 use mediareg::xml::description::{ObjectKind, SceneDescription, Value};
 use mediareg::xml::load_file;
 use mediareg::BuildOverrides;

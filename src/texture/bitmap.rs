@@ -80,7 +80,7 @@ impl Bitmap {
 
     #[inline]
     pub fn eval(&self, uv: Vec2) -> Vec3 {
-        let Vec2 { x: u, y: v } = super::texture::apply_to_uv(&self.to_uv, uv);
+        let Vec2 { x: u, y: v } = super::uv::apply_to_uv(&self.to_uv, uv);
         let (px, py) = (u * self.width as f32, v * self.height as f32);
         match self.filter {
             FilterType::Nearest => self.texel(px.floor() as i64, py.floor() as i64),

@@ -1,23 +1,17 @@
 //! Textures a BSDF parameter may be: a constant, Mitsuba's `checkerboard`
 //! (`src/textures/checkerboard.cpp`): with uv' = to_uv · uv and the mask
 //! m = frac(uv') > ½ per axis, color0 where m.x = m.y, else color1; or a `bitmap`
-//! (`super::bitmap`).
+//! (`bitmap`).
+
+pub mod bitmap;
+pub mod uv;
 
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 
-use super::bitmap::Bitmap;
-
-/// Mitsuba's `to_uv` (a 2D affine map, rows (a, b, tx) and (c, d, ty)) applied to `uv`.
-#[inline]
-pub fn apply_to_uv(to_uv: &[[f32; 3]; 2], uv: Vec2) -> Vec2 {
-    let [r0, r1] = to_uv;
-    Vec2::new(
-        r0[0] * uv.x + r0[1] * uv.y + r0[2],
-        r1[0] * uv.x + r1[1] * uv.y + r1[2],
-    )
-}
+use bitmap::Bitmap;
+pub use uv::apply_to_uv;
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Texture {

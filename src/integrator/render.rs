@@ -1,0 +1,268 @@
+//! Rendering: the film is cut into blocks (32×32, smaller for small images) rendered in
+//! parallel (rayon), in passes of samples per pixel (1, 1, 2, 4, … up to an eighth of
+//! the total), so that a render can be cut short between passes with an image of
+//! uniform spp. Each sample has its own random stream (seed, pixel, sample index), and
+//! blocks are merged in a fixed order whose pass schedule depends on spp only, so a
+//! seed gives the bit-identical image at any thread count.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use glam::{Vec2, Vec3};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+
+use super::volpath::PathSettings;
+use super::{direct, path, volpath};
+use crate::image::Image;
+use crate::sampling::Pcg32;
+use crate::scene::film::ImageBlock;
+use crate::scene::shot::Shot;
+use crate::scene::{IntegratorKind, Scene};
+
+/// The block side: 32, or smaller for a small image so that there are at least
+/// `MIN_BLOCKS` blocks to share between threads (a 64×64 film in four 32×32 blocks
+/// of unequal cost kept one of two threads idle a third of the time). It depends on the
+/// image size only, never on the thread count, so the image stays bit-identical at any
+/// thread count.
+fn block_size(width: usize, height: usize) -> usize {
+    const MIN_BLOCKS: usize = 64;
+    [32, 16, 8]
+        .into_iter()
+        .find(|&b| width.div_ceil(b) * height.div_ceil(b) >= MIN_BLOCKS)
+        .unwrap_or(8)
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderStats {
+    pub spp: u32,
+    pub samples: u64,
+    pub seconds: f64,
+    /// Samples whose value was NaN or infinite (dropped, never written).
+    pub invalid_samples: u64,
+    /// Whether `RenderOptions::cancel` cut the render short (`spp` is what it reached).
+    pub interrupted: bool,
+}
+
+/// What to render besides the radiance, what to change in the scene for this render
+/// alone, and how to report progress.
+#[derive(Clone, Debug, Default)]
+pub struct RenderOptions {
+    pub show_progress: bool,
+    /// A derivative image to estimate in the same paths (volpath only).
+    pub gradient: volpath::Gradient,
+    /// Per medium, the albedo to render with instead of the scene's (the paper's method
+    /// renders at a lower albedo); None renders the scene's.
+    pub albedo: Option<Vec<Vec3>>,
+    /// Set (e.g. by a Ctrl-C handler) to stop: the pass under way is dropped and the
+    /// image of the passes completed is returned.
+    pub cancel: Option<&'static AtomicBool>,
+}
+
+impl RenderOptions {
+    /// The same options with `medium`'s albedo replaced (the others as `scene` has them
+    /// or as already replaced).
+    pub fn with_albedo(mut self, scene: &Scene, medium: u32, albedo: Vec3) -> RenderOptions {
+        let mut all = self
+            .albedo
+            .take()
+            .unwrap_or_else(|| scene.media.iter().map(|m| m.albedo).collect());
+        all[medium as usize] = albedo;
+        self.albedo = Some(all);
+        self
+    }
+}
+
+/// Sample ranges of the passes: 1, 1, 2, 4, … doubling up to max(1, spp / 8).
+fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
+    let cap = (spp / 8).max(1);
+    let mut passes = Vec::new();
+    let (mut start, mut size) = (0u32, 1u32);
+    while start < spp {
+        let end = start.saturating_add(size).min(spp);
+        passes.push((start, end));
+        if start > 0 {
+            size = (size * 2).min(cap);
+        }
+        start = end;
+    }
+    passes
+}
+
+/// The radiance image and, when asked for, the derivative image (same layout, signed).
+pub struct Rendered {
+    pub image: Image,
+    pub gradient: Option<Image>,
+    pub stats: RenderStats,
+}
+
+/// Renders `scene` through `shot` (Mitsuba's `render(scene, sensor, seed, spp)`):
+/// radiance and, with `opts.gradient`, its derivative, each sample splatted into both
+/// images with the same filter weight.
+pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
+    let show_progress = opts.show_progress;
+    let gradient = opts.gradient;
+    let with_gradient = gradient != volpath::Gradient::None;
+    let albedo: Vec<Vec3> = match &opts.albedo {
+        Some(a) => {
+            assert_eq!(a.len(), scene.media.len(), "one albedo per medium");
+            a.clone()
+        }
+        None => scene.media.iter().map(|m| m.albedo).collect(),
+    };
+    let settings = PathSettings {
+        albedo: &albedo,
+        gradient,
+    };
+    let film = &shot.film;
+    let (cw, ch) = film.crop_size;
+    let (ox, oy) = film.crop_offset;
+    let border = film.rfilter.border();
+    let spp = shot.spp;
+    let sample = |o, d, tmax, rng: &mut Pcg32| match scene.integrator.kind {
+        IntegratorKind::Path => (path::sample(scene, o, d, tmax, rng), Vec3::ZERO),
+        IntegratorKind::Direct {
+            emitter_samples,
+            bsdf_samples,
+        } => (
+            direct::sample(scene, o, d, tmax, rng, emitter_samples, bsdf_samples),
+            Vec3::ZERO,
+        ),
+        IntegratorKind::Volpath => volpath::sample(scene, &settings, o, d, tmax, rng),
+    };
+
+    let mut tiles = Vec::new();
+    let block = block_size(cw, ch);
+    for ty in (0..ch).step_by(block) {
+        for tx in (0..cw).step_by(block) {
+            tiles.push((tx, ty, block.min(cw - tx), block.min(ch - ty)));
+        }
+    }
+    let total = (cw * ch) as u64 * spp as u64;
+    let bar = if show_progress {
+        let b = ProgressBar::new(total);
+        b.set_style(
+            ProgressStyle::with_template(
+                "{bar:40} {percent:>3}%  {human_pos}/{human_len} samples  {per_sec}  ETA {eta}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+
+    let cancelled = || opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+    let new_blocks = || -> Vec<(ImageBlock, Option<ImageBlock>)> {
+        tiles
+            .iter()
+            .map(|&(tx, ty, tw, th)| {
+                let b = || ImageBlock::new((tx as i64, ty as i64), (tw, th), border);
+                (b(), with_gradient.then(b))
+            })
+            .collect()
+    };
+
+    let start = std::time::Instant::now();
+    let mut acc = new_blocks();
+    let mut invalid_samples = 0;
+    let mut spp_done = 0;
+    for (s0, s1) in pass_schedule(spp) {
+        // Each tile renders samples s0..s1 of its pixels into fresh blocks; None if
+        // cancelled on the way (the whole pass is then dropped).
+        let mut pass = new_blocks();
+        let invalid: Vec<Option<u64>> = tiles
+            .par_iter()
+            .zip(pass.par_iter_mut())
+            .map(|(&(tx, ty, tw, th), (block, d_block))| {
+                let mut invalid = 0u64;
+                for y in ty..ty + th {
+                    if cancelled() {
+                        return None;
+                    }
+                    for x in tx..tx + tw {
+                        let (fx, fy) = (x + ox, y + oy);
+                        let pixel = (fy * film.width + fx) as u64;
+                        for si in s0..s1 {
+                            let mut rng = Pcg32::for_sample(shot.seed, pixel, si as u64);
+                            let u = rng.next_2d();
+                            let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
+                            let ray = shot.camera.sample_ray(pos);
+                            let (mut l, mut dl) = sample(ray.o, ray.d, ray.tmax, &mut rng);
+                            if !l.is_finite() || !dl.is_finite() {
+                                invalid += 1;
+                                l = Vec3::ZERO;
+                                dl = Vec3::ZERO;
+                            }
+                            let p = (pos.x - ox as f32, pos.y - oy as f32);
+                            block.put(p, l, &film.rfilter);
+                            if let Some(db) = d_block {
+                                db.put(p, dl, &film.rfilter);
+                            }
+                        }
+                    }
+                }
+                bar.inc((tw * th) as u64 * (s1 - s0) as u64);
+                Some(invalid)
+            })
+            .collect();
+        let Some(invalid) = invalid.into_iter().sum::<Option<u64>>() else {
+            break;
+        };
+        invalid_samples += invalid;
+        for ((b, db), (pb, pdb)) in acc.iter_mut().zip(&pass) {
+            pb.accumulate_into(b);
+            if let (Some(pdb), Some(db)) = (pdb, db) {
+                pdb.accumulate_into(db);
+            }
+        }
+        spp_done = s1;
+        if cancelled() {
+            break;
+        }
+    }
+    bar.finish_and_clear();
+
+    let mut full = ImageBlock::new((0, 0), (cw, ch), border);
+    let mut d_full = with_gradient.then(|| ImageBlock::new((0, 0), (cw, ch), border));
+    for (b, db) in &acc {
+        b.accumulate_into(&mut full);
+        if let (Some(db), Some(d_full)) = (db, &mut d_full) {
+            db.accumulate_into(d_full);
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let as_image = |b: &ImageBlock| Image {
+        width: cw,
+        height: ch,
+        pixels: b.develop(),
+    };
+    Rendered {
+        image: as_image(&full),
+        gradient: d_full.as_ref().map(as_image),
+        stats: RenderStats {
+            spp: spp_done,
+            samples: (cw * ch) as u64 * spp_done as u64,
+            seconds,
+            invalid_samples,
+            interrupted: spp_done < spp,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocks_shrink_for_small_images_only() {
+        assert_eq!(block_size(1024, 1024), 32);
+        assert_eq!(block_size(256, 256), 32);
+        assert_eq!(block_size(128, 128), 16);
+        assert_eq!(block_size(64, 64), 8);
+        assert_eq!(block_size(3, 5), 8);
+        for (w, h) in [(64, 64), (100, 37), (128, 128), (512, 300)] {
+            let b = block_size(w, h);
+            assert!(w.div_ceil(b) * h.div_ceil(b) >= 64, "{w}x{h}: block {b}");
+        }
+    }
+}

@@ -1,0 +1,260 @@
+//! BSDF plugins: Mitsuba's `diffuse`, `dielectric`, `thindielectric`,
+//! `roughdielectric`, `conductor`, `roughconductor`, `plastic`, `roughplastic`, `null`
+//! and `twosided`, with their indices of refraction and microfacet parameters.
+
+use glam::Vec3;
+
+use super::props::Props;
+use super::spectrum::SpectrumUse;
+use super::{unsupported, Builder};
+use crate::bsdf::dielectric::named_ior;
+use crate::bsdf::microfacet::{Microfacet, MicrofacetType};
+use crate::bsdf::{
+    Bsdf, Conductor, Dielectric, Plastic, RoughConductor, RoughDielectric, RoughPlastic,
+    ThinDielectric,
+};
+use crate::error::{Result, SceneError};
+use crate::xml::description::{ObjId, ObjectKind, Value};
+
+impl Builder<'_> {
+    pub(super) fn bsdf(&mut self, id: ObjId) -> Result<u32> {
+        if let Some(&i) = self.bsdf_ids.get(&id) {
+            return Ok(i);
+        }
+        let b = self.bsdf_value(id)?;
+        self.bsdfs.push(b);
+        let i = self.bsdfs.len() as u32 - 1;
+        self.bsdf_ids.insert(id, i);
+        Ok(i)
+    }
+
+    pub(super) fn bsdf_value(&self, id: ObjId) -> Result<Bsdf> {
+        let p = Props::new(self.desc, id);
+        let b = match p.obj.plugin.as_str() {
+            "null" => {
+                p.finish("(no parameters)")?;
+                Bsdf::Null
+            }
+            "diffuse" => {
+                let reflectance = self.reflectance(&p, "reflectance", Vec3::splat(0.5))?;
+                p.finish("reflectance")?;
+                Bsdf::Diffuse { reflectance }
+            }
+            // The same parameters, and defaults, for both.
+            "dielectric" | "thindielectric" => {
+                let int_ior = ior(&p, "int_ior", "bk7")?;
+                let ext_ior = ior(&p, "ext_ior", "air")?;
+                let eta = (int_ior / ext_ior) as f32;
+                let specular_reflectance = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
+                let specular_transmittance = p.color_nonneg("specular_transmittance", Vec3::ONE)?;
+                let thin = p.obj.plugin == "thindielectric";
+                p.finish("int_ior, ext_ior, specular_reflectance, specular_transmittance")?;
+                if !thin {
+                    Bsdf::Dielectric(Dielectric {
+                        eta,
+                        specular_reflectance,
+                        specular_transmittance,
+                    })
+                } else {
+                    Bsdf::ThinDielectric(ThinDielectric {
+                        eta,
+                        specular_reflectance,
+                        specular_transmittance,
+                    })
+                }
+            }
+            "conductor" => {
+                let sr = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
+                let (eta, k) = conductor_ior(&p)?;
+                p.finish("material, eta, k, specular_reflectance")?;
+                Bsdf::Conductor(Conductor {
+                    eta,
+                    k,
+                    specular_reflectance: sr,
+                })
+            }
+            "roughconductor" => {
+                let specular_reflectance = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
+                let (eta, k) = conductor_ior(&p)?;
+                let distr = microfacet(&p, true)?;
+                p.finish("material, eta, k, specular_reflectance, distribution, alpha, alpha_u, alpha_v, sample_visible")?;
+                Bsdf::RoughConductor(RoughConductor {
+                    distr,
+                    eta,
+                    k,
+                    specular_reflectance,
+                })
+            }
+            "roughdielectric" => {
+                let eta = relative_ior(&p, "bk7")?;
+                let specular_reflectance = p.color_nonneg("specular_reflectance", Vec3::ONE)?;
+                let specular_transmittance = p.color_nonneg("specular_transmittance", Vec3::ONE)?;
+                let distr = microfacet(&p, true)?;
+                p.finish("int_ior, ext_ior, specular_reflectance, specular_transmittance, distribution, alpha, alpha_u, alpha_v, sample_visible")?;
+                Bsdf::RoughDielectric(RoughDielectric {
+                    eta,
+                    distr,
+                    specular_reflectance,
+                    specular_transmittance,
+                })
+            }
+            // The same coated-diffuse parameters; the rough one adds a microfacet coating.
+            "plastic" | "roughplastic" => {
+                let rough = p.obj.plugin == "roughplastic";
+                let eta = if rough {
+                    relative_ior(&p, "polypropylene")?
+                } else {
+                    (ior(&p, "int_ior", "polypropylene")? / ior(&p, "ext_ior", "air")?) as f32
+                };
+                let diffuse_reflectance =
+                    self.reflectance(&p, "diffuse_reflectance", Vec3::splat(0.5))?;
+                let specular_reflectance = if p.has("specular_reflectance") {
+                    Some(p.color_nonneg("specular_reflectance", Vec3::ONE)?)
+                } else {
+                    None
+                };
+                let nonlinear = p.bool("nonlinear", false)?;
+                if rough {
+                    let distr = microfacet(&p, false)?;
+                    p.finish("int_ior, ext_ior, diffuse_reflectance, specular_reflectance, nonlinear, distribution, alpha, sample_visible")?;
+                    Bsdf::RoughPlastic(RoughPlastic::new(
+                        eta,
+                        distr,
+                        diffuse_reflectance,
+                        specular_reflectance,
+                        nonlinear,
+                    ))
+                } else {
+                    p.finish(
+                        "int_ior, ext_ior, diffuse_reflectance, specular_reflectance, nonlinear",
+                    )?;
+                    Bsdf::Plastic(Plastic::new(
+                        eta,
+                        diffuse_reflectance,
+                        specular_reflectance,
+                        nonlinear,
+                    ))
+                }
+            }
+            "twosided" => {
+                let nested = p.children_of(ObjectKind::Bsdf);
+                let (front, back) = match nested.as_slice() {
+                    [one] => {
+                        let b = self.bsdf_value(one.object)?;
+                        (b.clone(), b)
+                    }
+                    [a, b] => (self.bsdf_value(a.object)?, self.bsdf_value(b.object)?),
+                    _ => return Err(p.error("twosided needs one or two nested <bsdf>")),
+                };
+                p.finish("one or two nested bsdf")?;
+                Bsdf::TwoSided(Box::new([front, back]))
+            }
+            _ => {
+                return Err(unsupported(
+                    &p,
+                    "bsdf",
+                    "null, diffuse, dielectric, thindielectric, conductor, plastic, roughdielectric, roughconductor, roughplastic, twosided",
+                ))
+            }
+        };
+        Ok(b)
+    }
+}
+
+/// A conductor's complex index η + iκ: `eta` and `k` (float, rgb or spectrum,
+/// unbounded), or `material` "none" (η 0, κ 1: an ideal mirror). Mitsuba's named
+/// materials (spectral tables) are refused.
+fn conductor_ior(p: &Props) -> Result<(Vec3, Vec3)> {
+    let material = p.string("material", "none")?;
+    if !p.has("eta") && material != "none" {
+        return Err(p.error(format!(
+            "conductor material \"{material}\": the named materials (spectral IOR tables) are not supported yet; give eta and k (<float> or <rgb>), or material \"none\""
+        )));
+    }
+    if material != "none" {
+        return Err(p.error("give either eta and k, or material, not both"));
+    }
+    let eta = p.color_nonneg_as("eta", Vec3::ZERO, SpectrumUse::Unbounded)?;
+    let k = p.color_nonneg_as("k", Vec3::ONE, SpectrumUse::Unbounded)?;
+    Ok((eta, k))
+}
+
+/// Mitsuba's microfacet parameters: `distribution` ("beckmann" or "ggx"; Beckmann by
+/// default), `alpha` (0.1) or both `alpha_u` and `alpha_v` (only where `anisotropic`),
+/// and `sample_visible` (true). mediareg always samples the visible normals; `false`
+/// only changes how Mitsuba samples, not what it computes, so it is read and noted.
+fn microfacet(p: &Props, anisotropic: bool) -> Result<Microfacet> {
+    let name = p.string("distribution", "beckmann")?;
+    let kind = MicrofacetType::parse(&name).ok_or_else(|| {
+        p.error(format!(
+            "distribution \"{name}\" is not one of \"beckmann\", \"ggx\""
+        ))
+    })?;
+    let (has_u, has_v) = (p.has("alpha_u"), p.has("alpha_v"));
+    let (au, av) = if has_u || has_v {
+        if !anisotropic {
+            return Err(p.error(
+                "anisotropic roughness (alpha_u, alpha_v) is not supported by this plugin, as in Mitsuba 3; give alpha",
+            ));
+        }
+        if !(has_u && has_v) {
+            return Err(p.error("give both alpha_u and alpha_v, or alpha"));
+        }
+        if p.has("alpha") {
+            return Err(p.error("give either alpha or alpha_u and alpha_v, not both"));
+        }
+        (
+            p.float_in("alpha_u", 0.1, 0.0, 1e3)?,
+            p.float_in("alpha_v", 0.1, 0.0, 1e3)?,
+        )
+    } else {
+        let a = p.float_in("alpha", 0.1, 0.0, 1e3)?;
+        (a, a)
+    };
+    if !p.bool("sample_visible", true)? {
+        eprintln!(
+            "note: {}: sample_visible = false is read; mediareg samples visible normals (the same image in expectation)",
+            p.obj.label()
+        );
+    }
+    Ok(Microfacet::new(kind, au as f32, av as f32))
+}
+
+/// int_ior / ext_ior (defaults `int_default` and "air"), which must differ, as Mitsuba's
+/// rough models require.
+fn relative_ior(p: &Props, int_default: &str) -> Result<f32> {
+    let int_ior = ior(p, "int_ior", int_default)?;
+    let ext_ior = ior(p, "ext_ior", "air")?;
+    if int_ior == ext_ior {
+        return Err(p.error(format!(
+            "int_ior and ext_ior are both {int_ior}: they must differ (a null bsdf is an index-matched boundary)"
+        )));
+    }
+    Ok((int_ior / ext_ior) as f32)
+}
+
+/// An index of refraction: a number, or one of Mitsuba's named materials.
+fn ior(p: &Props, name: &str, default: &str) -> Result<f64> {
+    let given = p.obj.props.iter().find(|q| q.name == name);
+    let v = match given.map(|q| &q.value) {
+        Some(Value::String(_)) | None => {
+            let s = p.string(name, default)?;
+            named_ior(&s).map(|v| v as f64).ok_or_else(|| {
+                let names: Vec<&str> = crate::bsdf::dielectric::NAMED_IOR
+                    .iter()
+                    .map(|(n, _)| *n)
+                    .collect();
+                SceneError::at(
+                    &given.map_or(p.obj.loc.clone(), |q| q.loc.clone()),
+                    format!("unknown material \"{s}\" for {name}"),
+                )
+                .with_hint(format!("give a number or one of: {}", names.join(", ")))
+            })?
+        }
+        Some(_) => p.float(name, 1.0)?,
+    };
+    if !(v > 0.0 && v.is_finite()) {
+        return Err(p.error(format!("{name} = {v}: must be a finite index > 0")));
+    }
+    Ok(v)
+}

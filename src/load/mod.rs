@@ -1,0 +1,169 @@
+//! Mitsuba 3 plugins → render state: [`build_scene`] translates a
+//! [`SceneDescription`] into the plain objects a [`Scene`] is made of, one file per
+//! plugin kind (`integrator`, `sensor`, `shape`, `bsdf`, `texture`, `emitter`,
+//! `medium`), each reading its properties (Mitsuba's names and defaults, through
+//! `props`; spectra through `spectrum`) and failing on anything it does not
+//! understand; [`Scene::new`] then prepares them for rendering.
+
+mod bsdf;
+mod emitter;
+mod integrator;
+mod medium;
+pub mod props;
+mod sensor;
+mod shape;
+pub mod spectrum;
+mod texture;
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use glam::{DMat4, Mat4};
+
+use crate::bsdf::Bsdf;
+use crate::emitter::Emitter;
+use crate::error::{err_at, Result, SceneError};
+use crate::geometry::shape::Geometry;
+use crate::medium::HomogeneousMedium;
+use crate::scene::shot::Shot;
+use crate::scene::{IntegratorKind, IntegratorSettings, Scene, SceneParts, ShapeInfo};
+use crate::xml::description::{ObjId, ObjectKind, SceneDescription};
+use crate::xml::LoadOptions;
+use props::Props;
+
+pub use emitter::UNIFORM_SPECTRUM_RGB;
+
+/// The objects translated so far, in `Scene`'s order, and the ids they were declared
+/// under (a `<ref>` names one); shared by the per-plugin files.
+struct Builder<'a> {
+    desc: &'a SceneDescription,
+    bsdfs: Vec<Bsdf>,
+    bsdf_ids: HashMap<ObjId, u32>,
+    media: Vec<HomogeneousMedium>,
+    medium_ids: HashMap<ObjId, u32>,
+    geometries: Vec<Geometry>,
+    shapes: Vec<ShapeInfo>,
+    emitters: Vec<Emitter>,
+    environment: Option<u32>,
+    warnings: Vec<String>,
+}
+
+/// Options from the command line that override the file.
+#[derive(Clone, Debug, Default)]
+pub struct BuildOverrides {
+    pub spp: Option<u32>,
+    pub seed: Option<u64>,
+    /// A crop window `[x, y, width, height]` of the full film, replacing the file's
+    /// (Mitsuba's `crop_offset_x/y`, `crop_width/height`).
+    pub crop: Option<[usize; 4]>,
+}
+
+/// Loads and builds a scene.
+pub fn load_scene(path: &Path, opts: &LoadOptions, overrides: &BuildOverrides) -> Result<Scene> {
+    let desc = crate::xml::load_file(path, opts)?;
+    build_scene(&desc, overrides)
+}
+
+pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Result<Scene> {
+    let mut b = Builder {
+        desc,
+        bsdfs: Vec::new(),
+        bsdf_ids: HashMap::new(),
+        media: Vec::new(),
+        medium_ids: HashMap::new(),
+        geometries: Vec::new(),
+        shapes: Vec::new(),
+        emitters: Vec::new(),
+        environment: None,
+        warnings: desc.notes.clone(),
+    };
+    let root = Props::new(desc, desc.root);
+
+    let integrator = match root.child_of(ObjectKind::Integrator)? {
+        Some(c) => b.integrator(c.object)?,
+        None => IntegratorSettings {
+            kind: IntegratorKind::Path,
+            max_depth: u32::MAX,
+            rr_depth: 5,
+            hide_emitters: false,
+            moment_aovs_dropped: false,
+        },
+    };
+    if integrator.moment_aovs_dropped {
+        b.warnings.push(
+            "integrator \"moment\": the image is its nested integrator's; the second-moment AOVs Mitsuba adds to the EXR are not written".into(),
+        );
+    }
+    for c in root.children_of(ObjectKind::Shape) {
+        b.shape(c.object)?;
+    }
+    for c in root.children_of(ObjectKind::Emitter) {
+        b.emitter(c.object, None)?;
+    }
+    // Top-level BSDFs and media are declarations for <ref>: build them so they are
+    // validated even when unused.
+    for c in root.children_of(ObjectKind::Bsdf) {
+        b.bsdf(c.object)?;
+    }
+    for c in root.children_of(ObjectKind::Medium) {
+        b.medium(c.object)?;
+    }
+    let sensors = root.children_of(ObjectKind::Sensor);
+    let sensor = match sensors.as_slice() {
+        [] => {
+            return Err(root
+                .error("the scene has no <sensor>")
+                .with_hint("add <sensor type=\"perspective\"> with a <film type=\"hdrfilm\">"))
+        }
+        [s] => s.object,
+        [_, second, ..] => return err_at(&second.loc, "only one <sensor> per scene is supported"),
+    };
+    let (camera, camera_medium, mut film, spp, seed) = b.sensor(sensor)?;
+    if let Some([x, y, w, h]) = overrides.crop {
+        if w == 0 || h == 0 || x + w > film.width || y + h > film.height {
+            return Err(SceneError::new(
+                None,
+                format!(
+                    "--crop {x},{y},{w},{h} does not fit the {} x {} film",
+                    film.width, film.height
+                ),
+            )
+            .with_hint("give X,Y,W,H with W, H > 0 and X + W, Y + H within the film"));
+        }
+        film.crop_offset = (x, y);
+        film.crop_size = (w, h);
+    }
+    // Top-level textures are used where a bsdf refers to them by id.
+    root.children_of(ObjectKind::Texture);
+    root.finish("integrator, sensor, shape, emitter, bsdf, medium, texture")?;
+
+    Ok(Scene::new(SceneParts {
+        geometries: b.geometries,
+        shapes: b.shapes,
+        bsdfs: b.bsdfs,
+        emitters: b.emitters,
+        environment: b.environment,
+        media: b.media,
+        camera_medium,
+        shot: Shot {
+            camera,
+            film,
+            spp: overrides.spp.unwrap_or(spp),
+            seed: overrides.seed.unwrap_or(seed),
+        },
+        integrator,
+        warnings: b.warnings,
+    }))
+}
+
+fn unsupported(p: &Props, kind: &str, supported: &str) -> SceneError {
+    SceneError::at(
+        p.loc(),
+        format!("unsupported {kind} plugin \"{}\"", p.obj.plugin),
+    )
+    .with_hint(format!("mediareg supports {kind} plugins: {supported}"))
+}
+
+fn to_mat4(m: DMat4) -> Mat4 {
+    m.as_mat4()
+}

@@ -1,0 +1,201 @@
+//! The sensor and what it holds: Mitsuba's `perspective` sensor, `hdrfilm` film,
+//! reconstruction filters (`box`, `tent`, `gaussian`) and the `independent` sampler.
+
+use glam::Vec2;
+
+use super::props::Props;
+use super::{to_mat4, unsupported, Builder};
+use crate::error::Result;
+use crate::scene::camera::{fov_x_degrees, PerspectiveCamera};
+use crate::scene::film::{Film, Rfilter};
+use crate::xml::description::{ObjId, ObjectKind};
+
+impl Builder<'_> {
+    pub(super) fn sensor(
+        &mut self,
+        id: ObjId,
+    ) -> Result<(PerspectiveCamera, Option<u32>, Film, u32, u64)> {
+        let p = Props::new(self.desc, id);
+        if p.obj.plugin != "perspective" {
+            return Err(unsupported(&p, "sensor", "perspective"));
+        }
+        let film = match p.child_of(ObjectKind::Film)? {
+            Some(c) => self.film(c.object)?,
+            None => Film {
+                width: 768,
+                height: 576,
+                crop_offset: (0, 0),
+                crop_size: (768, 576),
+                rfilter: Rfilter::Gaussian { stddev: 0.5 },
+            },
+        };
+        let (spp, seed) = match p.child_of(ObjectKind::Sampler)? {
+            Some(c) => self.sampler(c.object)?,
+            None => (4, 0),
+        };
+        let aspect = film.width as f64 / film.height as f64;
+        let fov_x = if p.has("fov") {
+            if p.has("focal_length") {
+                return Err(p.error("give either fov or focal_length, not both"));
+            }
+            let fov = p.float("fov", 0.0)?;
+            if !(fov > 0.0 && fov < 180.0) {
+                return Err(p.error(format!("fov = {fov}: must be in (0, 180) degrees")));
+            }
+            let axis = p.string("fov_axis", "x")?.to_ascii_lowercase();
+            fov_x_degrees(fov, &axis, aspect).ok_or_else(|| {
+                p.error(format!(
+                    "fov_axis \"{axis}\": must be x, y, diagonal, smaller or larger"
+                ))
+            })?
+        } else {
+            // Mitsuba: a 35 mm-equivalent focal length (default 50mm) sets the diagonal fov.
+            let f = p.string("focal_length", "50mm")?;
+            let mm: f64 = f
+                .strip_suffix("mm")
+                .unwrap_or(&f)
+                .trim()
+                .parse()
+                .ok()
+                .filter(|v: &f64| *v > 0.0 && v.is_finite())
+                .ok_or_else(|| p.error(format!("focal_length \"{f}\": expected e.g. \"50mm\"")))?;
+            let fov = (2.0 * (36f64.hypot(24.0) / (2.0 * mm)).atan()).to_degrees();
+            fov_x_degrees(fov, "diagonal", aspect).unwrap()
+        };
+        let near_clip = p.float("near_clip", 1e-2)?;
+        let far_clip = p.float("far_clip", 1e4)?;
+        if !(near_clip > 0.0 && far_clip > near_clip) {
+            return Err(p.error(format!(
+                "near_clip = {near_clip}, far_clip = {far_clip}: need 0 < near_clip < far_clip"
+            )));
+        }
+        let ppo = Vec2::new(
+            p.float("principal_point_offset_x", 0.0)? as f32,
+            p.float("principal_point_offset_y", 0.0)? as f32,
+        );
+        let to_world = p.transform("to_world")?;
+        let medium = match p.child_of(ObjectKind::Medium)? {
+            Some(c) => Some(self.medium(c.object)?),
+            None => None,
+        };
+        // Every projective camera reads the focal plane's distance (Mitsuba's
+        // ProjectiveCamera); a pinhole has no use for it.
+        p.float("focus_distance", far_clip)?;
+        p.finish("fov, fov_axis, focal_length, near_clip, far_clip, focus_distance, principal_point_offset_x, principal_point_offset_y, to_world, film, sampler, medium")?;
+        let camera = PerspectiveCamera {
+            to_world: to_mat4(to_world),
+            tan_half_fov_x: (0.5 * fov_x).to_radians().tan() as f32,
+            aspect: aspect as f32,
+            near_clip: near_clip as f32,
+            far_clip: far_clip as f32,
+            principal_point_offset: ppo,
+            film_size: Vec2::new(film.width as f32, film.height as f32),
+        };
+        Ok((camera, medium, film, spp, seed))
+    }
+
+    pub(super) fn film(&self, id: ObjId) -> Result<Film> {
+        let p = Props::new(self.desc, id);
+        if p.obj.plugin != "hdrfilm" {
+            return Err(unsupported(&p, "film", "hdrfilm"));
+        }
+        let width = p.int("width", 768)?;
+        let height = p.int("height", 576)?;
+        // 1 << 15 per side is far beyond any render this machine can hold; refuse early.
+        const MAX_SIDE: i64 = 1 << 15;
+        if !(1..=MAX_SIDE).contains(&width) || !(1..=MAX_SIDE).contains(&height) {
+            return Err(p.error(format!(
+                "film size {width} x {height}: width and height must be in [1, {MAX_SIDE}]"
+            )));
+        }
+        let cx = p.int("crop_offset_x", 0)?;
+        let cy = p.int("crop_offset_y", 0)?;
+        let cw = p.int("crop_width", width)?;
+        let ch = p.int("crop_height", height)?;
+        if cx < 0 || cy < 0 || cw < 1 || ch < 1 || cx + cw > width || cy + ch > height {
+            return Err(p.error(format!(
+                "crop window ({cx}, {cy}) + ({cw} x {ch}) does not fit the {width} x {height} film"
+            )));
+        }
+        // The accumulation buffer holds 16 bytes per pixel (RGB sum + weight): refuse
+        // up front what would not fit rather than abort on allocation.
+        const MAX_PIXELS: i64 = 1 << 27;
+        if cw * ch > MAX_PIXELS {
+            return Err(p.error(format!(
+                "film (crop) size {cw} x {ch} = {} pixels needs {:.1} GiB to accumulate; the limit is {MAX_PIXELS} pixels",
+                cw * ch,
+                (cw * ch * 16) as f64 / (1u64 << 30) as f64
+            ))
+            .with_hint("render a smaller film, or a crop window of it"));
+        }
+        let pixel_format = p.string("pixel_format", "rgb")?.to_ascii_lowercase();
+        if pixel_format != "rgb" {
+            return Err(p.error(format!(
+                "pixel_format \"{pixel_format}\" is not supported: mediareg writes RGB (use \"rgb\")"
+            )));
+        }
+        // Storage precision only: mediareg always writes float32.
+        let component_format = p
+            .string("component_format", "float16")?
+            .to_ascii_lowercase();
+        if !["float16", "float32"].contains(&component_format.as_str()) {
+            return Err(p.error(format!(
+                "component_format \"{component_format}\": use float16 or float32"
+            )));
+        }
+        let file_format = p.string("file_format", "openexr")?.to_ascii_lowercase();
+        if !["openexr", "exr"].contains(&file_format.as_str()) {
+            return Err(p.error(format!(
+                "file_format \"{file_format}\": only openexr is supported"
+            )));
+        }
+        if p.bool("sample_border", false)? {
+            return Err(p.error("sample_border = true is not supported"));
+        }
+        let rfilter = match p.child_of(ObjectKind::Rfilter)? {
+            Some(c) => self.rfilter(c.object)?,
+            None => Rfilter::Gaussian { stddev: 0.5 },
+        };
+        p.finish("width, height, crop_offset_x, crop_offset_y, crop_width, crop_height, pixel_format, component_format, file_format, sample_border, rfilter")?;
+        Ok(Film {
+            width: width as usize,
+            height: height as usize,
+            crop_offset: (cx as usize, cy as usize),
+            crop_size: (cw as usize, ch as usize),
+            rfilter,
+        })
+    }
+
+    pub(super) fn rfilter(&self, id: ObjId) -> Result<Rfilter> {
+        let p = Props::new(self.desc, id);
+        let f = match p.obj.plugin.as_str() {
+            "box" => Rfilter::Box,
+            "tent" => Rfilter::Tent {
+                radius: p.float_in("radius", 1.0, 1e-3, 16.0)? as f32,
+            },
+            "gaussian" => Rfilter::Gaussian {
+                stddev: p.float_in("stddev", 0.5, 1e-3, 4.0)? as f32,
+            },
+            _ => return Err(unsupported(&p, "rfilter", "box, tent, gaussian")),
+        };
+        p.finish("radius (tent), stddev (gaussian)")?;
+        Ok(f)
+    }
+
+    pub(super) fn sampler(&self, id: ObjId) -> Result<(u32, u64)> {
+        let p = Props::new(self.desc, id);
+        if p.obj.plugin != "independent" {
+            return Err(unsupported(&p, "sampler", "independent"));
+        }
+        let spp = p.int("sample_count", 4)?;
+        if !(1..=1 << 24).contains(&spp) {
+            return Err(p.error(format!("sample_count = {spp}: must be in [1, {}]", 1 << 24)));
+        }
+        let seed = p.int("seed", 0)?;
+        if seed < 0 {
+            return Err(p.error(format!("seed = {seed}: must be ≥ 0")));
+        }
+        p.finish("sample_count, seed")?;
+        Ok((spp as u32, seed as u64))
+    }
+}

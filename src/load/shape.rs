@@ -1,0 +1,196 @@
+//! Shape plugins: Mitsuba's `obj`, `ply`, `serialized`, `cube`, `sphere`, `rectangle`
+//! and `disk`, with the BSDF, emitter and media each one carries.
+
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+
+use super::props::Props;
+use super::{to_mat4, unsupported, Builder};
+use crate::bsdf::Bsdf;
+use crate::error::{Result, SceneError};
+use crate::geometry::mesh::{cube, read_obj, read_ply, TriangleMesh};
+use crate::geometry::serialized::read_serialized;
+use crate::geometry::shape::{Geometry, Planar, Sphere};
+use crate::scene::ShapeInfo;
+use crate::texture::Texture;
+use crate::xml::description::{ObjId, ObjectKind};
+use crate::xml::resolve::resolve_path;
+
+/// The largest |coordinate| a shape may reach.
+const MAX_COORDINATE: f32 = 1e12;
+
+impl Builder<'_> {
+    pub(super) fn shape(&mut self, id: ObjId) -> Result<()> {
+        let p = Props::new(self.desc, id);
+        let to_world = p.transform("to_world")?;
+        let flip_normals = p.bool("flip_normals", false)?;
+        let geometry = match p.obj.plugin.as_str() {
+            "ply" | "obj" | "serialized" => {
+                let (name, loc) = p
+                    .string_opt("filename")?
+                    .ok_or_else(|| p.error("missing the \"filename\" property"))?;
+                let path = resolve_path(&self.desc.search_path, name).ok_or_else(|| {
+                    let dirs: Vec<String> = self.desc.search_path.iter().map(|d| d.display().to_string()).collect();
+                    SceneError::at(loc, format!("mesh file \"{name}\" not found"))
+                        .with_hint(format!(
+                            "searched: {}; add its folder with -a DIR (for the Stanford meshes run scripts/fetch_meshes)",
+                            dirs.join(", ")
+                        ))
+                })?;
+                let face_normals = p.bool("face_normals", false)?;
+                let mut raw = match p.obj.plugin.as_str() {
+                    "ply" => read_ply(&path),
+                    "obj" => read_obj(&path),
+                    _ => {
+                        let index = p.int("shape_index", 0)?;
+                        let index = u32::try_from(index).map_err(|_| {
+                            p.error(format!("shape_index = {index}: must be 0 or more"))
+                        })?;
+                        read_serialized(&path, index)
+                    }
+                }
+                // Name the scene line of the <shape> too, not only the mesh file.
+                .map_err(|e| SceneError::at(p.loc(), format!("{}: {e}", p.obj.label())))?;
+                // Mitsuba flips an OBJ's v (v ↦ 1 − v) unless told not to.
+                if p.obj.plugin == "obj" && p.bool("flip_tex_coords", true)? {
+                    if let Some(uvs) = &mut raw.uvs {
+                        uvs.iter_mut().for_each(|t| t.y = 1.0 - t.y);
+                    }
+                }
+                self.warnings
+                    .extend(raw.warnings.iter().map(|w| format!("{}: {w}", p.loc())));
+                Geometry::Mesh(TriangleMesh::new(
+                    raw,
+                    &to_mat4(to_world),
+                    face_normals,
+                    flip_normals,
+                    Path::new(&path),
+                )?)
+            }
+            "cube" => {
+                let to_world = to_mat4(to_world);
+                let mut mesh =
+                    TriangleMesh::new(cube(), &to_world, true, flip_normals, Path::new("cube"))?;
+                mesh.cube_to_world = Some(to_world);
+                Geometry::Mesh(mesh)
+            }
+            "sphere" => {
+                let center = p.point_opt("center")?.unwrap_or(DVec3::ZERO);
+                let radius = p.float("radius", 1.0)?;
+                if radius <= 0.0 {
+                    return Err(p.error(format!("radius = {radius}: must be > 0")));
+                }
+                // Mitsuba: to_world · translate(center) · scale(radius); only similarity
+                // transforms keep it a sphere.
+                let c = to_world.transform_point3(center);
+                let axes =
+                    [DVec3::X, DVec3::Y, DVec3::Z].map(|a| to_world.transform_vector3(a).length());
+                if (axes[0] - axes[1]).abs() > 1e-6 * axes[0]
+                    || (axes[0] - axes[2]).abs() > 1e-6 * axes[0]
+                {
+                    return Err(p.error("to_world scales the sphere non-uniformly; use a ply/obj mesh for an ellipsoid"));
+                }
+                let linear = glam::DMat3::from_mat4(to_world) / axes[0];
+                Geometry::Sphere(Sphere {
+                    center: c.as_vec3().into(),
+                    radius: (radius * axes[0]) as f32,
+                    flip_normals,
+                    axes: glam::Mat3A::from(linear.as_mat3()),
+                })
+            }
+            "rectangle" => Geometry::Planar(Planar::new(to_mat4(to_world), flip_normals, false)),
+            "disk" => Geometry::Planar(Planar::new(to_mat4(to_world), flip_normals, true)),
+            _ => {
+                return Err(unsupported(
+                    &p,
+                    "shape",
+                    "ply, obj, serialized, sphere, cube, rectangle, disk",
+                ))
+            }
+        };
+        // Single-precision ray tracing needs finite coordinates of sane magnitude (at 1e12
+        // one f32 step is 6e4 units; box areas overflow near 1e19 and break the BVH).
+        let b = geometry.bounds();
+        let mut reach = b.min.abs().max(b.max.abs()).max_element();
+        if let Geometry::Mesh(m) = &geometry {
+            // Bounds skip NaN; a NaN vertex (binary PLY) must not.
+            if m.positions.iter().any(|p| !p.is_finite()) {
+                reach = f32::NAN;
+            }
+        }
+        if !b.is_empty() && (reach.is_nan() || reach > MAX_COORDINATE) {
+            return Err(p.error(format!(
+                "the shape reaches {reach:e} from the origin: coordinates must be finite and within ±{MAX_COORDINATE:e}; check its to_world, radius or the mesh's units"
+            )));
+        }
+        let shape_index = self.geometries.len() as u32;
+        let emitter = match p.child_of(ObjectKind::Emitter)? {
+            Some(c) => Some(self.emitter(c.object, Some(shape_index))?),
+            None => None,
+        };
+        let bsdf = match p.child_of(ObjectKind::Bsdf)? {
+            Some(c) => self.bsdf(c.object)?,
+            None => {
+                // Mitsuba's default: diffuse 0.5, or black for an emitter.
+                let r = if emitter.is_some() { 0.0 } else { 0.5 };
+                self.bsdfs.push(Bsdf::Diffuse {
+                    reflectance: Texture::Constant(Vec3::splat(r)),
+                });
+                self.bsdfs.len() as u32 - 1
+            }
+        };
+        let interior = match p.named_child_of("interior", ObjectKind::Medium)? {
+            Some(c) => Some(self.medium(c.object)?),
+            None => None,
+        };
+        let exterior = match p.named_child_of("exterior", ObjectKind::Medium)? {
+            Some(c) => Some(self.medium(c.object)?),
+            None => None,
+        };
+        let names = match p.obj.plugin.as_str() {
+            "ply" => "filename, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
+            "obj" => "filename, to_world, face_normals, flip_normals, flip_tex_coords, bsdf, emitter, interior, exterior",
+            "serialized" => "filename, shape_index, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
+            "sphere" => "center, radius, to_world, flip_normals, bsdf, emitter, interior, exterior",
+            _ => "to_world, flip_normals, bsdf, emitter, interior, exterior",
+        };
+        // Texture coordinates exist on meshes and rectangles only (Mitsuba's cube, sphere
+        // and disk have their own, not implemented here).
+        if self.bsdfs[bsdf as usize].is_textured()
+            && matches!(p.obj.plugin.as_str(), "cube" | "sphere" | "disk")
+        {
+            return Err(p.error(format!(
+                "a textured bsdf on a \"{}\" shape is not supported yet (texture coordinates exist on ply/obj meshes and rectangles)",
+                p.obj.plugin
+            )));
+        }
+        // Anisotropy is oriented by ∂p/∂u, which mediareg follows on meshes, rectangles,
+        // disks and spheres; Mitsuba's cube has its own texture coordinates, which
+        // mediareg's cube lacks.
+        let tangent_frame = self.bsdfs[bsdf as usize].is_anisotropic();
+        if tangent_frame && p.obj.plugin == "cube" {
+            return Err(p.error(format!(
+                "anisotropic roughness on a \"{}\" shape is not supported yet (it follows the surface's ∂p/∂u, which mediareg has on ply/obj/serialized meshes, rectangles, disks and spheres)",
+                p.obj.plugin
+            )));
+        }
+        // An area light is sampled with pdf 1 / area.
+        if emitter.is_some() && !(geometry.area() > 0.0 && geometry.area().is_finite()) {
+            return Err(p.error(format!(
+                "the area light's shape has area {}: it must be finite and > 0; check its to_world scale",
+                geometry.area()
+            )));
+        }
+        p.finish(names)?;
+        self.geometries.push(geometry);
+        self.shapes.push(ShapeInfo {
+            bsdf,
+            emitter,
+            interior,
+            exterior,
+            tangent_frame,
+        });
+        Ok(())
+    }
+}
