@@ -29,11 +29,8 @@ const LAYERS: &[&str] = &[
 
 const MAX_LINES: usize = 800;
 
-/// Files allowed over `MAX_LINES`, with why.
-const LONG_FILES: &[(&str, &str)] = &[(
-    "src/main.rs",
-    "the CLI, 839 lines: under rework on another branch, where it is to be split",
-)];
+/// Files allowed over `MAX_LINES`, with why (none now).
+const LONG_FILES: &[(&str, &str)] = &[];
 
 fn src() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
@@ -80,7 +77,9 @@ fn library_files() -> Vec<SourceFile> {
     rust_files(&root, &mut paths);
     paths
         .into_iter()
-        .filter(|p| !p.ends_with("main.rs"))
+        // The command line (src/bin) sits above every layer and uses the library by
+        // its crate name, not `crate::`.
+        .filter(|p| !p.starts_with(root.join("bin")))
         .map(|p| {
             let rel = p.strip_prefix(&root).unwrap();
             let module = module_path(rel);

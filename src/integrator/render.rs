@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use super::volpath::PathSettings;
 use super::{direct, path, volpath};
 use crate::image::Image;
-use crate::sampling::Pcg32;
+use crate::sampling::{Pcg32, PixelSamples};
 use crate::scene::film::ImageBlock;
 use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene};
@@ -182,9 +182,10 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                     for x in tx..tx + tw {
                         let (fx, fy) = (x + ox, y + oy);
                         let pixel = (fy * film.width + fx) as u64;
+                        let positions = PixelSamples::new(shot.seed, pixel);
                         for si in s0..s1 {
                             let mut rng = Pcg32::for_sample(shot.seed, pixel, si as u64);
-                            let u = rng.next_2d();
+                            let u = positions.get(si);
                             let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
                             let ray = shot.camera.sample_ray(pos);
                             let (mut l, mut dl) = sample(ray.o, ray.d, ray.tmax, &mut rng);

@@ -124,7 +124,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
             return Err(SceneError::new(
                 None,
                 format!(
-                    "--crop {x},{y},{w},{h} does not fit the {} x {} film",
+                    "the crop window {x},{y},{w},{h} does not fit the {} x {} film",
                     film.width, film.height
                 ),
             )

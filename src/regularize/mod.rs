@@ -17,4 +17,4 @@ pub mod sequence;
 pub mod spatial;
 pub mod temporal;
 
-pub use pipeline::{regularize, CBeta, Method, Options, Regularized, Reproject};
+pub use pipeline::{regularize, CBeta, Method, Options, RegularizeError, Regularized, Reproject};

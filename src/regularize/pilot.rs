@@ -28,11 +28,16 @@
 //!   D̄'s own noise adds to the first;
 //! * t(f): a straight line through the candidates' times (one candidate's time at a
 //!   few spp is mostly noise; the real dependence on the albedo is smooth).
+//!
 //! F is guided by the mean of all the pilot's source images (the run guides by its own,
 //! less noisy, R_s). Each channel is chosen on its own: a channel's albedo scales only that
 //! channel's contributions, so its terms depend on its own factor alone (a candle's red
 //! albedo 0.98 wants a factor nearer 1 than its blue 0.88). Factor 1 (plain volpath,
 //! D = 0) is a candidate, so the choice never plans a loss.
+//!
+//! At the pilot's few samples the bias estimate is mostly below its own noise and
+//! clamped to 0, so the candidates stop at 0.2: below, the denoising would do nearly all
+//! the work unchecked.
 
 use super::spatial::{self, BilateralParams, Features};
 use crate::image::stats::{Estimate, PixelLayout};

@@ -144,47 +144,115 @@ pub struct Regularized {
     pub pilot: Option<Pilot>,
 }
 
-fn bad(msg: String) -> SceneError {
-    SceneError::new(None, msg)
+/// Why the method cannot run with these options. The words are the library's; the
+/// command line says which of its flags each one concerns.
+#[derive(Clone, Debug)]
+pub enum RegularizeError {
+    /// The scene's integrator is not volpath.
+    NotVolpath,
+    NoMedium(usize),
+    /// The automatic factor is for the difference predictor only.
+    AutoFactorNeedsDifference,
+    PilotTooSmall {
+        chunks: usize,
+        spp: u32,
+    },
+    /// The source factor is outside (0, 1].
+    Factor(f32),
+    Frames {
+        frames: usize,
+        w_a: f64,
+    },
+    /// The c_β fit needs at least 1 spp and `at` in (0, 1].
+    Fit {
+        spp: u32,
+        at: f32,
+    },
+    /// The c_β fit with equal source and target albedos.
+    NothingToFit,
+    /// The albedos or c_β the predictor cannot use (`Predictor::validate`).
+    Predictor(SceneError),
+}
+
+impl std::fmt::Display for RegularizeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RegularizeError::NotVolpath => write!(
+                f,
+                "regularize needs the volpath integrator (the scene's integrator ignores media)"
+            ),
+            RegularizeError::NoMedium(m) => write!(f, "no medium #{m}"),
+            RegularizeError::AutoFactorNeedsDifference => write!(
+                f,
+                "the automatic factor is chosen for the difference predictor; give the factor for the others"
+            ),
+            RegularizeError::PilotTooSmall { chunks, spp } => write!(
+                f,
+                "the factor's pilot needs at least 2 renders of at least 1 spp (got {chunks} of {spp})"
+            ),
+            RegularizeError::Factor(x) => write!(
+                f,
+                "the source factor {x} must lie in (0, 1]: the source albedo is factor × the scene's"
+            ),
+            RegularizeError::Frames { frames, w_a } => write!(
+                f,
+                "{frames} frames must be at least 1 and w_a {w_a} in (0, 1]"
+            ),
+            RegularizeError::Fit { spp, at } => write!(
+                f,
+                "the c_beta fit needs at least 1 spp (got {spp}) and an albedo between source and target (at = {at} must lie in (0, 1])"
+            ),
+            RegularizeError::NothingToFit => write!(
+                f,
+                "the c_beta fit: source and target albedo are equal (factor 1), nothing to fit"
+            ),
+            RegularizeError::Predictor(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for RegularizeError {}
+
+impl From<SceneError> for RegularizeError {
+    fn from(e: SceneError) -> Self {
+        RegularizeError::Predictor(e)
+    }
 }
 
 /// Runs the method on `scene` through `shot`, whose camera is the target frame. The
 /// sequence's frames are changed copies of the shot, and the source albedo an override
 /// of the render; the scene is only read.
-pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regularized, SceneError> {
+pub fn regularize(
+    scene: &Scene,
+    shot: &Shot,
+    opts: &Options,
+) -> Result<Regularized, RegularizeError> {
     if scene.integrator.kind != IntegratorKind::Volpath {
-        return Err(bad(
-            "regularize needs the volpath integrator (the scene's integrator ignores media)".into(),
-        ));
+        return Err(RegularizeError::NotVolpath);
     }
     let m = opts.medium as usize;
     if m >= scene.media.len() {
-        return Err(bad(format!("no medium #{m}")));
+        return Err(RegularizeError::NoMedium(m));
     }
     if opts.auto_factor.is_some() && opts.method != Method::Difference {
-        return Err(bad(
-            "--factor auto chooses the factor for the difference predictor (--predict difference); give the factor for the others".into(),
-        ));
+        return Err(RegularizeError::AutoFactorNeedsDifference);
     }
     if let Some(p) = opts.auto_factor {
         if p.chunks < 2 || p.spp == 0 {
-            return Err(bad(format!(
-                "the factor's pilot needs at least 2 renders of at least 1 spp (got {} of {})",
-                p.chunks, p.spp
-            )));
+            return Err(RegularizeError::PilotTooSmall {
+                chunks: p.chunks,
+                spp: p.spp,
+            });
         }
     }
     if !(opts.factor > 0.0 && opts.factor <= 1.0) {
-        return Err(bad(format!(
-            "--factor {} must lie in (0, 1]: the source albedo is factor × the scene's",
-            opts.factor
-        )));
+        return Err(RegularizeError::Factor(opts.factor));
     }
     if opts.frames == 0 || !(opts.w_a > 0.0 && opts.w_a <= 1.0) {
-        return Err(bad(format!(
-            "--frames {} must be at least 1 and --wa {} in (0, 1]",
-            opts.frames, opts.w_a
-        )));
+        return Err(RegularizeError::Frames {
+            frames: opts.frames,
+            w_a: opts.w_a,
+        });
     }
     let target_albedo = scene.media[m].albedo;
     let sigma_t = scene.media[m].sigma_t;
@@ -226,15 +294,10 @@ pub fn regularize(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regulari
     }
     if let Method::Paper(CBeta::Fit { spp, at }) = opts.method {
         if spp == 0 || !(at > 0.0 && at <= 1.0) {
-            return Err(bad(format!(
-                "the c_beta fit needs at least 1 spp and an albedo between source and target (at = {at} must lie in (0, 1])"
-            )));
+            return Err(RegularizeError::Fit { spp, at });
         }
         if (albedos.target - albedos.source).max_element() <= 0.0 {
-            return Err(bad(
-                "--c-beta fit: source and target albedo are equal (factor 1), nothing to fit"
-                    .into(),
-            ));
+            return Err(RegularizeError::NothingToFit);
         }
     }
 

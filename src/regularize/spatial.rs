@@ -120,18 +120,22 @@ pub fn column_norms(
 ) -> (Vec<f64>, Vec<f64>) {
     let filter = Filter::new(radiance, features, width, p);
     let len = radiance.len();
-    let (mut norm2, mut diagonal) = (vec![0.0f64; len], vec![0.0f64; len]);
-    for i in 0..len {
-        let mut wsum = 0.0f64;
-        filter.for_each_weight(i, |_, w| wsum += w);
-        filter.for_each_weight(i, |j, w| {
-            let f = w / wsum;
-            norm2[j] += f * f;
-            if j == i {
-                diagonal[i] = f;
-            }
-        });
-    }
+    let mut norm2 = vec![0.0f64; len];
+    let diagonal = (0..len)
+        .map(|i| {
+            let mut wsum = 0.0f64;
+            filter.for_each_weight(i, |_, w| wsum += w);
+            let mut own = 0.0;
+            filter.for_each_weight(i, |j, w| {
+                let f = w / wsum;
+                norm2[j] += f * f;
+                if j == i {
+                    own = f;
+                }
+            });
+            own
+        })
+        .collect();
     (norm2, diagonal)
 }
 

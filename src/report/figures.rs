@@ -292,7 +292,7 @@ fn time_sweep(
 
 /// The fixed factors the σ_t and factor sweeps render the difference predictor at, to
 /// compare the pilot's choice with the best one the reference picks.
-const FACTOR_GRID: [f32; 6] = [0.9, 0.7, 0.5, 0.4, 0.3, 0.2];
+const FACTOR_GRID: [f32; 4] = [0.7, 0.5, 0.3, 0.2];
 
 /// The lowest corrected MSE of the fixed-factor difference rows of `rows`, with its factor.
 fn best_fixed(rows: &[Row]) -> Option<(f32, f64)> {

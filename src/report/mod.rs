@@ -3,6 +3,7 @@
 //! with `metrics` (MSE against a reference with its own variance) and `paper` (the
 //! paper's published numbers, side by side).
 
+pub mod decompose;
 pub mod figures;
 pub mod html;
 pub mod metrics;

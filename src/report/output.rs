@@ -10,6 +10,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 
+use super::decompose::Decomposition;
 use super::paper::table1_row;
 use super::table::{Budget, Method, Row, TableOptions, TableRun};
 
@@ -102,6 +103,9 @@ pub struct RunInfo {
     pub references: Vec<ReferenceInfo>,
     pub notes: Vec<String>,
     pub mediareg_version: String,
+    /// Where the automatic row's gain goes, per scene (`decompose`).
+    #[serde(default)]
+    pub decomposition: Vec<Decomposition>,
 }
 
 /// Remakes `dir/table1.md` from `dir/table1.json` and `dir/run.json`.
@@ -167,6 +171,7 @@ pub fn write_outputs(opts: &TableOptions, run: &TableRun) -> Result<()> {
             .collect(),
         notes: run.notes.clone(),
         mediareg_version: env!("CARGO_PKG_VERSION").into(),
+        decomposition: run.decomposition.clone(),
     };
     write(
         &opts.out.join("run.json"),
@@ -251,6 +256,41 @@ fn markdown(info: &RunInfo, rows: &[Row]) -> Result<String> {
             "| {} | {} | {} | {} | {} | {:.0} | {:.3e} |",
             r.scene, r.mitsuba_version, r.variant, r.spp, r.chunks, r.seconds, r.mean_variance
         )?;
+    }
+    if !info.decomposition.is_empty() {
+        writeln!(md, "\n## Where the gain goes (regularized_auto)\n")?;
+        writeln!(
+            md,
+            "Per pixel and channel, one sample's variance from the factor's pilot at the target albedo α_t (R_t) and at the source albedo α_s it chose (R_s, and the difference D before and after the spatial filter and the blend over frames); seconds per spp measured at both; k̄ the contribution-weighted mean number of scattering vertices in the medium (Σ α ∂R/∂α / Σ R). *predicted* is [Var(R_s) + Var(D) denoised] / spp, the variance the prediction should have; *bias²* is the corrected MSE minus it (the denoising's bias, and what the pilot's variances miss).\n"
+        )?;
+        writeln!(
+            md,
+            "| scene | factor | s/spp α_t | s/spp α_s | k̄ α_t | k̄ α_s | Var R_t | Var R_s | Var D | Var D denoised | spp | predicted | MSE corrected | bias² |"
+        )?;
+        writeln!(
+            md,
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        )?;
+        for d in &info.decomposition {
+            writeln!(
+                md,
+                "| {} | {:?} | {:.4} | {:.4} | {:.2} | {:.2} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {} | {:.3e} | {:.3e} | {:.3e} |",
+                d.scene,
+                d.factor,
+                d.seconds_per_spp_target,
+                d.seconds_per_spp_source,
+                d.vertices_target,
+                d.vertices_source,
+                d.var_target,
+                d.var_source,
+                d.var_difference,
+                d.var_difference_denoised,
+                d.spp,
+                d.predicted_variance,
+                d.mse_corrected,
+                d.bias2
+            )?;
+        }
     }
     if !info.notes.is_empty() {
         writeln!(md, "\n## Notes\n")?;

@@ -27,6 +27,9 @@ use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
+use glam::Vec3;
+
+use super::decompose::{self, Decomposition};
 use super::metrics::mse_against;
 use super::mitsuba::{MitsubaRunner, Unavailable};
 use super::paper::table1_row;
@@ -34,6 +37,7 @@ use crate::image::Image;
 use crate::integrator::volpath::Gradient;
 use crate::integrator::{render, RenderOptions};
 use crate::load::build_scene;
+use crate::regularize::pilot::{self, Pilot};
 use crate::regularize::pipeline::PilotSize;
 use crate::regularize::sequence::{image_centre_point, CameraPath};
 use crate::regularize::spatial::BilateralParams;
@@ -167,6 +171,8 @@ pub struct TableRun {
     pub references: Vec<(String, ReferenceMeta, f64)>,
     /// Things the reader must know (a method skipped, and why).
     pub notes: Vec<String>,
+    /// Per scene with a `regularized_auto` row: where its gain goes.
+    pub decomposition: Vec<Decomposition>,
 }
 
 fn sha256_file(path: &Path) -> Result<String> {
@@ -380,11 +386,7 @@ pub fn run_table(opts: &TableOptions) -> Result<TableRun> {
     }
     std::fs::create_dir_all(&opts.out)
         .with_context(|| format!("cannot create {}", opts.out.display()))?;
-    let mut run = TableRun {
-        rows: Vec::new(),
-        references: Vec::new(),
-        notes: Vec::new(),
-    };
+    let mut run = TableRun::default();
     for name in &opts.scenes {
         run_scene(&SceneJob::named(name), opts, &mut run)?;
     }
@@ -461,7 +463,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
                     spp: u32,
                     seconds: f64,
                     sequence: Option<(usize, f64)>|
-     -> Result<()> {
+     -> Result<f64> {
         let name_of = match (method, factor) {
             (Method::RegularizedDifference, Some(f)) => {
                 format!("{}_factor{}", method.as_str(), f[0])
@@ -490,7 +492,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             sequence_frames: sequence.map(|s| s.0),
             sequence_seconds: sequence.map(|s| s.1),
         });
-        Ok(())
+        Ok(mse_corrected)
     };
 
     // Plain volpath at the target albedo.
@@ -603,7 +605,12 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             true => source[c] / target[c],
             false => 1.0,
         });
-        push(method, Some(factor), &r.predicted, spp, seconds, sequence)?;
+        let mse_corrected = push(method, Some(factor), &r.predicted, spp, seconds, sequence)?;
+        if let (Method::RegularizedAuto, Some(pilot)) = (method, &r.pilot) {
+            let decomposition =
+                decompose_scene(&scene, name, medium, ropts, pilot, spp, mse_corrected);
+            run.decomposition.push(decomposition);
+        }
     }
 
     // Mitsuba 3 on the same file.
@@ -661,6 +668,48 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         }
     }
     Ok(())
+}
+
+/// Where the automatic row's gain goes (`decompose`): the pilot's terms, and the time
+/// per spp and mean path vertices measured at the target and the chosen albedo.
+fn decompose_scene(
+    scene: &Scene,
+    name: &str,
+    medium: u32,
+    ropts: &regularize::Options,
+    pilot: &Pilot,
+    spp: u32,
+    mse_corrected: f64,
+) -> Decomposition {
+    let target = scene.media[medium as usize].albedo;
+    let source = target * Vec3::from(pilot.factor);
+    let shot = &scene.shot;
+    let (w, h) = shot.film.crop_size;
+    let n_eff = pilot::effective_frames(ropts.frames, ropts.w_a);
+    let terms = decompose::pilot_terms(pilot, w * h, n_eff);
+    let seed = shot.seed.wrapping_add(6_000_000);
+    let difference = RenderOptions {
+        gradient: Gradient::Difference { medium, target },
+        ..Default::default()
+    }
+    .with_albedo(scene, medium, source);
+    let predicted_variance = (terms.var_source + terms.var_difference_denoised) / spp as f64;
+    Decomposition {
+        scene: name.to_string(),
+        factor: pilot.factor,
+        seconds_per_spp_target: seconds_per_spp(scene, &RenderOptions::default(), 1.0, seed),
+        seconds_per_spp_source: seconds_per_spp(scene, &difference, 1.0, seed),
+        vertices_target: decompose::mean_vertices(scene, shot, medium, target, 4),
+        vertices_source: decompose::mean_vertices(scene, shot, medium, source, 4),
+        var_target: terms.var_target,
+        var_source: terms.var_source,
+        var_difference: terms.var_difference,
+        var_difference_denoised: terms.var_difference_denoised,
+        spp,
+        predicted_variance,
+        mse_corrected,
+        bias2: mse_corrected - predicted_variance,
+    }
 }
 
 fn budget_seconds(b: Budget) -> f64 {

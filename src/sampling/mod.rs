@@ -1,9 +1,12 @@
 //! What every estimator draws on: random numbers (Mitsuba's `independent` sampler,
-//! PCG32), warps from the unit square, and the MIS weight.
+//! PCG32), the samples' positions in their pixel (a shifted (0,2)-sequence), warps from
+//! the unit square, and the MIS weight.
 
 pub mod independent;
 pub mod mis;
+pub mod pixel;
 pub mod warp;
 
 pub use independent::Pcg32;
 pub use mis::mis_weight;
+pub use pixel::PixelSamples;

@@ -124,33 +124,28 @@ pub struct SurfaceInteraction {
 impl Scene {
     /// The medium a derivative refers to: the one whose XML id is `name`, or the only
     /// one. The error names the choices.
-    pub fn medium_index(&self, name: Option<&str>) -> Result<u32, String> {
-        let ids: Vec<String> = self
-            .media
-            .iter()
-            .enumerate()
-            .map(|(i, m)| m.id.clone().unwrap_or_else(|| format!("(unnamed #{i})")))
-            .collect();
+    pub fn medium_index(&self, name: Option<&str>) -> Result<u32, MediumChoiceError> {
+        let ids = || -> Vec<String> {
+            self.media
+                .iter()
+                .enumerate()
+                .map(|(i, m)| m.id.clone().unwrap_or_else(|| format!("(unnamed #{i})")))
+                .collect()
+        };
         match name {
             Some(n) => self
                 .media
                 .iter()
                 .position(|m| m.id.as_deref() == Some(n))
                 .map(|i| i as u32)
-                .ok_or_else(|| {
-                    format!(
-                        "--medium {n}: no medium has that id; the scene's media: {}",
-                        ids.join(", ")
-                    )
+                .ok_or_else(|| MediumChoiceError::NoSuchId {
+                    id: n.to_string(),
+                    media: ids(),
                 }),
             None => match self.media.len() {
-                0 => Err("the scene has no medium".into()),
+                0 => Err(MediumChoiceError::NoMedium),
                 1 => Ok(0),
-                _ => Err(format!(
-                    "the scene has {} media, name one with --medium ID: {}",
-                    ids.len(),
-                    ids.join(", ")
-                )),
+                _ => Err(MediumChoiceError::Several { media: ids() }),
             },
         }
     }
@@ -294,3 +289,39 @@ impl Scene {
         }
     }
 }
+
+/// Why `Scene::medium_index` could not choose a medium (the command line names its
+/// `--medium` flag).
+#[derive(Clone, Debug, PartialEq)]
+pub enum MediumChoiceError {
+    NoSuchId {
+        id: String,
+        media: Vec<String>,
+    },
+    NoMedium,
+    /// Several media and no id given.
+    Several {
+        media: Vec<String>,
+    },
+}
+
+impl std::fmt::Display for MediumChoiceError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MediumChoiceError::NoSuchId { id, media } => write!(
+                f,
+                "no medium has the id {id}; the scene's media: {}",
+                media.join(", ")
+            ),
+            MediumChoiceError::NoMedium => write!(f, "the scene has no medium"),
+            MediumChoiceError::Several { media } => write!(
+                f,
+                "the scene has {} media, name one by its id: {}",
+                media.len(),
+                media.join(", ")
+            ),
+        }
+    }
+}
+
+impl std::error::Error for MediumChoiceError {}

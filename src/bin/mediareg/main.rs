@@ -1,0 +1,78 @@
+//! The `mediareg` command line: argument parsing and reporting only, one file per
+//! command (render, regularize, and the paper's table, figures and report).
+
+mod common;
+mod interrupt;
+mod paper;
+mod regularize;
+mod render;
+
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+use common::TableArgs;
+use interrupt::{EXIT_INTERRUPTED, INTERRUPT};
+
+#[derive(Parser)]
+#[command(
+    name = "mediareg",
+    version,
+    about = "A renderer for participating media that reads Mitsuba 3 scene files"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a Mitsuba 3 scene file to OUT.exr (linear RGB) and OUT.png (sRGB preview).
+    Render(render::RenderArgs),
+    /// The paper's method: render at source albedo factor × the scene's, denoise the
+    /// albedo gradient over a camera sequence, predict the image at the scene's albedo.
+    /// Writes OUT.exr (the prediction), OUT_source.exr, OUT_dalbedo_raw.exr and
+    /// OUT_dalbedo.exr (denoised), each with a PNG preview.
+    Regularize(regularize::RegularizeArgs),
+    /// The paper's Table 1 on this machine: for each scene, at equal time (or spp), the
+    /// regularized method (temporal and single-frame spatial), plain volpath and Mitsuba 3's
+    /// volpath, each image's MSE against the scene's Mitsuba 3 reference. Writes
+    /// OUT/table1.md, table1.csv, table1.json, run.json and every image.
+    Table(TableArgs),
+    /// An HTML page (reports/index.html) from a table run and the figures: per scene the
+    /// reference, each method's image and error map, the table, the plots. Also remakes
+    /// the table's table1.md from its JSON files.
+    Report(paper::ReportArgs),
+    /// The paper's figures (Fig. 6, 7, 9, 11, 12 and speed against error) as PNG plots
+    /// with their numbers (figN.json), from reduced-size sweeps against the references
+    /// in reference/figures/ (Fig. 7: the full-size cube).
+    Figures(paper::FiguresArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) if INTERRUPT.load(Ordering::SeqCst) => ExitCode::from(EXIT_INTERRUPTED),
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            if INTERRUPT.load(Ordering::SeqCst) {
+                ExitCode::from(EXIT_INTERRUPTED)
+            } else {
+                ExitCode::FAILURE
+            }
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Render(args) => render::run(args),
+        Command::Regularize(args) => regularize::run(args),
+        Command::Table(args) => paper::table(args),
+        Command::Report(args) => paper::report(args),
+        Command::Figures(args) => paper::figures(args),
+    }
+}

@@ -1,0 +1,277 @@
+//! `mediareg regularize`: the paper's method on a scene file.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+use anyhow::{anyhow, Result};
+use clap::Args;
+
+use mediareg::image::{self, Image};
+use mediareg::regularize::pipeline::PilotSize;
+use mediareg::regularize::sequence::{image_centre_point, CameraPath};
+use mediareg::regularize::spatial::BilateralParams;
+use mediareg::regularize::{self, CBeta, Method, Reproject};
+
+use crate::common::{
+    fmt3, medium_error, parse_point, prepare, regularize_error, sibling, SceneArgs,
+};
+
+/// The paper's method: render at source albedo factor × the scene's, denoise the
+/// albedo gradient over a camera sequence, predict the image at the scene's albedo.
+/// Writes OUT.exr (the prediction), OUT_source.exr, OUT_dalbedo_raw.exr and
+/// OUT_dalbedo.exr (denoised), each with a PNG preview.
+#[derive(Args)]
+pub struct RegularizeArgs {
+    #[command(flatten)]
+    pub args: SceneArgs,
+    /// The medium (its XML id) to extrapolate; needed when the scene has several.
+    #[arg(long, value_name = "ID")]
+    pub medium: Option<String>,
+    /// Source albedo = factor × the scene's albedo (per channel), or `auto` (the
+    /// difference predictor: chosen by a pilot). Default: auto with `--predict
+    /// difference`, 0.95 with the others.
+    #[arg(long, value_name = "F|auto")]
+    pub factor: Option<String>,
+    /// The pilot of `--factor auto`: renders per candidate factor, and their spp.
+    #[arg(long, default_value_t = 8)]
+    pub pilot_renders: usize,
+    #[arg(long, default_value_t = 1)]
+    pub pilot_spp: u32,
+    /// c_β of the paper's predictor (0 < c_β ≤ σ_t α_s), or `fit` to fit it to a
+    /// cheap render (--fit-spp, --fit-at).
+    #[arg(long = "c-beta", default_value = "0.5", value_name = "C|fit")]
+    pub c_beta: String,
+    /// Samples per pixel of the render c_β is fitted to.
+    #[arg(long, default_value_t = 4)]
+    pub fit_spp: u32,
+    /// The fit's albedo: source + at × (target − source).
+    #[arg(long, default_value_t = 1.0)]
+    pub fit_at: f32,
+    /// N: the target frame and N − 1 earlier frames.
+    #[arg(long, default_value_t = 11)]
+    pub frames: usize,
+    /// The blending weight w_a of Eq. 10.
+    #[arg(long, default_value_t = 0.1)]
+    pub wa: f64,
+    /// How earlier frames are reprojected into the target frame.
+    #[arg(long, value_enum, default_value = "exact")]
+    pub reproject: ReprojectArg,
+    /// The camera moved this many degrees per frame about the --target point, around
+    /// its up vector.
+    #[arg(long, value_name = "DEGREES", conflicts_with_all = ["dolly", "camera_path"])]
+    pub orbit: Option<f32>,
+    /// The camera moved this far per frame along its view direction.
+    #[arg(long, value_name = "DISTANCE", conflicts_with = "camera_path")]
+    pub dolly: Option<f32>,
+    /// A file of sensor transforms, one per line in time order, the last the target
+    /// frame: 16 numbers (4x4 row-major) or 9 (origin target up).
+    #[arg(long, value_name = "FILE")]
+    pub camera_path: Option<PathBuf>,
+    /// The orbit's centre "x,y,z" (default: the first visible point at the image centre).
+    #[arg(long, value_name = "X,Y,Z")]
+    pub target: Option<String>,
+    /// Also filter the gradient spatially (joint bilateral, guided by the first hit);
+    /// the default with `--predict difference`.
+    #[arg(long, conflicts_with = "no_spatial")]
+    pub spatial: bool,
+    /// Filter the gradient over frames only (the default with the paper's predictors).
+    #[arg(long)]
+    pub no_spatial: bool,
+    /// The prediction function.
+    #[arg(long, value_enum, default_value = "difference")]
+    pub predict: PredictArg,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum ReprojectArg {
+    Exact,
+    Shift,
+    None,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum PredictArg {
+    Paper,
+    Linear,
+    Loglinear,
+    /// R_s + the denoised difference R(α_t) − R(α_s) rendered in the same paths
+    Difference,
+}
+
+pub fn run(cmd: RegularizeArgs) -> Result<()> {
+    let RegularizeArgs {
+        args,
+        medium,
+        factor,
+        c_beta,
+        fit_spp,
+        fit_at,
+        frames,
+        wa,
+        reproject,
+        orbit,
+        dolly,
+        camera_path,
+        target,
+        spatial,
+        no_spatial,
+        predict,
+        pilot_renders,
+        pilot_spp,
+    } = cmd;
+    let (scene_data, out_exr) = prepare(&args)?;
+    let medium = scene_data
+        .medium_index(medium.as_deref())
+        .map_err(medium_error)?;
+    let c_beta = if c_beta == "fit" {
+        CBeta::Fit {
+            spp: fit_spp,
+            at: fit_at,
+        }
+    } else {
+        CBeta::Fixed(
+            c_beta
+                .parse::<f32>()
+                .ok()
+                .filter(|c| c.is_finite())
+                .ok_or_else(|| anyhow!("--c-beta {c_beta}: expected a number or `fit`"))?,
+        )
+    };
+    let method = match predict {
+        PredictArg::Paper => Method::Paper(c_beta),
+        PredictArg::Linear => Method::Linear,
+        PredictArg::Loglinear => Method::LogLinear,
+        PredictArg::Difference => Method::Difference,
+    };
+    // The target frame: the file's shot, or the camera path's last transform.
+    let mut shot = scene_data.shot.clone();
+    let path = match (orbit, dolly, camera_path) {
+        (Some(degrees), _, _) => {
+            let target = match target {
+                Some(t) => parse_point(&t)?,
+                None => image_centre_point(&scene_data, &scene_data.shot).ok_or_else(|| anyhow!("--orbit: the image centre sees no surface; give the orbit's centre with --target x,y,z"))?,
+            };
+            CameraPath::Orbit {
+                degrees_per_frame: degrees,
+                target,
+            }
+        }
+        (_, Some(distance), _) => CameraPath::Dolly {
+            distance_per_frame: distance,
+        },
+        (_, _, Some(file)) => {
+            let p = CameraPath::read(&file).map_err(|e| anyhow!("{e}"))?;
+            // The file's last transform is the target frame.
+            if let CameraPath::Transforms(list) = &p {
+                shot.camera.to_world = *list.last().expect("not empty");
+            }
+            p
+        }
+        _ => CameraPath::Static,
+    };
+    if frames > 1 && path == CameraPath::Static {
+        eprintln!(
+            "note: no --orbit, --dolly or --camera-path: the {frames} frames share the sensor and differ only in their noise"
+        );
+    }
+    // `auto` (the default with the difference predictor) leaves the factor to the
+    // pilot; the factor given is then unused.
+    let pilot = PilotSize {
+        chunks: pilot_renders,
+        spp: pilot_spp,
+    };
+    let (factor, auto_factor) = match factor.as_deref() {
+        Some("auto") => (0.95, Some(pilot)),
+        Some(f) => (
+            f.parse::<f32>()
+                .ok()
+                .filter(|f| f.is_finite())
+                .ok_or_else(|| anyhow!("--factor {f}: expected a number or `auto`"))?,
+            None,
+        ),
+        None => (0.95, (method == Method::Difference).then_some(pilot)),
+    };
+    let opts = regularize::Options {
+        medium,
+        factor,
+        frames,
+        w_a: wa,
+        path,
+        reproject: match reproject {
+            ReprojectArg::Exact => Reproject::Exact,
+            ReprojectArg::Shift => Reproject::Shift,
+            ReprojectArg::None => Reproject::None,
+        },
+        spatial: (spatial || (method == Method::Difference && !no_spatial))
+            .then(BilateralParams::default),
+        auto_factor,
+        method,
+        show_progress: std::io::stderr().is_terminal(),
+    };
+    let r = regularize::regularize(&scene_data, &shot, &opts).map_err(regularize_error)?;
+
+    let outputs: [(PathBuf, &Image, bool); 4] = [
+        (out_exr.clone(), &r.predicted, false),
+        (sibling(&out_exr, "_source"), &r.source, false),
+        (sibling(&out_exr, "_dalbedo_raw"), &r.raw_gradient, true),
+        (sibling(&out_exr, "_dalbedo"), &r.gradient, true),
+    ];
+    // Both gradient previews on the raw gradient's scale, so they compare.
+    let scale = image::signed_scale(&r.raw_gradient);
+    let mut written = Vec::new();
+    for (path, img, signed) in &outputs {
+        image::write_exr(path, img)?;
+        written.push(path.display().to_string());
+        if !args.no_png {
+            let png = path.with_extension("png");
+            if *signed {
+                image::write_png_signed(&png, img, scale)?;
+            } else {
+                image::write_png(&png, img)?;
+            }
+            written.push(png.display().to_string());
+        }
+    }
+    if r.invalid_samples > 0 {
+        eprintln!(
+            "warning: {} samples were NaN or Inf and were dropped",
+            r.invalid_samples
+        );
+    }
+    if r.fallbacks > 0 {
+        eprintln!(
+            "warning: {} channel values could not be predicted (negative or not finite) and keep the source radiance",
+            r.fallbacks
+        );
+    }
+    if let Some(p) = &r.pilot {
+        let costs: Vec<String> = p
+            .candidates
+            .iter()
+            .map(|c| format!("{}: {:.3e}", c.factor, c.error.iter().sum::<f64>()))
+            .collect();
+        println!(
+            "factor {:?} (R, G, B) chosen by the pilot in {:.2} s (predicted squared error at equal time, summed over pixels and channels: {})",
+            p.factor,
+            p.seconds,
+            costs.join(", ")
+        );
+    }
+    let a = &r.albedos;
+    let t = &r.timings;
+    println!(
+        "albedo {} -> {}; {} frames ({:.2} blended per pixel), {} spp each; c_beta {}",
+        fmt3(a.source),
+        fmt3(a.target),
+        r.frames_rendered,
+        r.mean_frames,
+        shot.spp,
+        r.c_beta.map_or("-".into(), |c| format!("{c:.4}")),
+    );
+    println!(
+        "seconds: target frame {:.2}, all frames {:.2}, c_beta fit {:.2}, denoise+predict {:.2}",
+        t.target_frame, t.frames, t.fit, t.denoise_and_predict
+    );
+    println!("wrote {}", written.join(", "));
+    Ok(())
+}
