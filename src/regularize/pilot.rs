@@ -108,7 +108,7 @@ fn fit_line(points: &[(f64, f64)]) -> impl Fn(f64) -> f64 {
 /// channel, v_j one sample's variance at pixel j, from `samples` samples) and its
 /// squared bias on the difference's mean (the module comment's estimator).
 fn spatial_terms(
-    difference: &Estimate,
+    difference: &Measured,
     samples: f64,
     filter: &FilterMatrix,
 ) -> ([f64; 3], [f64; 3]) {
@@ -117,25 +117,28 @@ fn spatial_terms(
     let mut noise_power = [0.0; 3];
     for (j, v) in difference.var_mean.iter().enumerate() {
         for c in 0..3 {
-            left[c] += filter.norm2[j] * v[c] * samples;
-            noise_power[c] += (filter.norm2[j] - 2.0 * filter.diagonal[j] + 1.0) * v[c];
+            let v = v[c] as f64;
+            left[c] += filter.norm2[j] * v * samples;
+            noise_power[c] += (filter.norm2[j] - 2.0 * filter.diagonal[j] + 1.0) * v;
         }
     }
-    let d_mean: Vec<[f32; 3]> = difference
-        .mean
-        .iter()
-        .map(|m| m.map(|x| x as f32))
-        .collect();
     let filtered = spatial::denoise(
-        &d_mean,
+        &difference.mean,
         &filter.guide,
         filter.features,
         filter.width,
         filter.params,
     );
-    let seen = distance2(&filtered, &d_mean);
+    let seen = distance2(&filtered, &difference.mean);
     let bias2 = [0, 1, 2].map(|c| (seen[c] - noise_power[c]).max(0.0));
     (left, bias2)
+}
+
+/// Per pixel, the mean of a candidate's difference images and the variance of that
+/// mean (kept in f32: ten candidates of a large image add up).
+struct Measured {
+    mean: Vec<[f32; 3]>,
+    var_mean: Vec<[f32; 3]>,
 }
 
 /// The spatial filter as the pilot sees it: guided by the mean of all its source
@@ -204,9 +207,21 @@ pub fn choose_factor(
                 *g = [0, 1, 2].map(|c| g[c] + v[c] * share);
             }
         }
-        let source = Estimate::from_chunks(&sources, layout);
+        // Σ over pixels of one sample's variance: the chunks' variance of the mean,
+        // times chunks × spp.
+        let total = |e: &Estimate| -> [f64; 3] {
+            [0, 1, 2].map(|c| e.var_mean.iter().map(|v| v[c]).sum::<f64>() * samples)
+        };
+        let var_source = total(&Estimate::from_chunks(&sources, layout));
         let difference = Estimate::from_chunks(&differences, layout);
-        measured.push((factor, source, difference, seconds));
+        let var_difference = total(&difference);
+        let to_f32 =
+            |v: &[[f64; 3]]| -> Vec<[f32; 3]> { v.iter().map(|x| x.map(|y| y as f32)).collect() };
+        let kept = Measured {
+            mean: to_f32(&difference.mean),
+            var_mean: to_f32(&difference.var_mean),
+        };
+        measured.push((factor, var_source, var_difference, kept, seconds));
     }
     let filter = spatial.map(|params| {
         let (norm2, diagonal) = spatial::column_norms(&guide, features, width, params);
@@ -220,13 +235,7 @@ pub fn choose_factor(
         }
     });
     let mut candidates: Vec<Candidate> = Vec::new();
-    for (factor, source, difference, seconds) in measured {
-        // Σ over pixels of one sample's variance: the chunks' variance of the mean,
-        // times chunks × spp.
-        let total = |e: &Estimate| -> [f64; 3] {
-            [0, 1, 2].map(|c| e.var_mean.iter().map(|v| v[c]).sum::<f64>() * samples)
-        };
-        let (var_source, var_difference) = (total(&source), total(&difference));
+    for (factor, var_source, var_difference, difference, seconds) in measured {
         let (var_difference_filtered, bias2) = match &filter {
             Some(filter) if var_difference.iter().sum::<f64>() > 0.0 => {
                 spatial_terms(&difference, samples, filter)

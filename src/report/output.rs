@@ -261,7 +261,7 @@ fn markdown(info: &RunInfo, rows: &[Row]) -> Result<String> {
         writeln!(md, "\n## Where the gain goes (regularized_auto)\n")?;
         writeln!(
             md,
-            "Per pixel and channel, one sample's variance from the factor's pilot at the target albedo α_t (R_t) and at the source albedo α_s it chose (R_s, and the difference D before and after the spatial filter and the blend over frames); seconds per spp measured at both; k̄ the contribution-weighted mean number of scattering vertices in the medium (Σ α ∂R/∂α / Σ R). *predicted* is [Var(R_s) + Var(D) denoised] / spp, the variance the prediction should have; *bias²* is the corrected MSE minus it (the denoising's bias, and what the pilot's variances miss).\n"
+            "Per pixel and channel, one sample's variance from the factor's pilot at the target albedo α_t (R_t) and at the source albedo α_s it chose (R_s, and the difference D before and after the spatial filter and the blend over frames); seconds per spp measured at both; k̄ the contribution-weighted mean number of scattering vertices in the medium (Σ α ∂R/∂α / Σ R). *predicted* is [Var(R_s) + Var(D) denoised] / spp, the variance the prediction should have; *bias²* is the corrected MSE minus it: the denoising's bias and what the pilot's variances miss; negative where they overstate the noise (the pilot's variances come from 1-spp renders, and the stratified positions in the pixel make an N-spp mean converge faster than 1/N at edges).\n"
         )?;
         writeln!(
             md,
