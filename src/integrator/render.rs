@@ -1,8 +1,9 @@
 //! Rendering: the film is cut into blocks (32×32, smaller for small images) rendered in
 //! parallel (rayon), in passes of samples per pixel (1, 1, 2, 4, … up to an eighth of
 //! the total), so that a render can be cut short between passes with an image of
-//! uniform spp. Each sample has its own random stream (seed, pixel, sample index), and
-//! blocks are merged in a fixed order whose pass schedule depends on spp only, so a
+//! uniform spp. Each sample has its own random stream (seed, pixel, sample index) and
+//! its position in the pixel from the pixel's shifted (0,2)-sequence (`sampling::pixel`),
+//! and blocks are merged in a fixed order whose pass schedule depends on spp only, so a
 //! seed gives the bit-identical image at any thread count.
 
 use std::sync::atomic::{AtomicBool, Ordering};
