@@ -121,18 +121,21 @@ pub fn column_norms(
     let filter = Filter::new(radiance, features, width, p);
     let len = radiance.len();
     let mut norm2 = vec![0.0f64; len];
+    // Pixel i's weights, kept to normalise them without computing them twice.
+    let mut weights: Vec<(usize, f64)> = Vec::new();
     let diagonal = (0..len)
         .map(|i| {
-            let mut wsum = 0.0f64;
-            filter.for_each_weight(i, |_, w| wsum += w);
+            weights.clear();
+            filter.for_each_weight(i, |j, w| weights.push((j, w)));
+            let wsum: f64 = weights.iter().map(|(_, w)| w).sum();
             let mut own = 0.0;
-            filter.for_each_weight(i, |j, w| {
+            for &(j, w) in &weights {
                 let f = w / wsum;
                 norm2[j] += f * f;
                 if j == i {
                     own = f;
                 }
-            });
+            }
             own
         })
         .collect();

@@ -295,11 +295,21 @@ fn time_sweep(
 const FACTOR_GRID: [f32; 4] = [0.7, 0.5, 0.3, 0.2];
 
 /// The lowest corrected MSE of the fixed-factor difference rows of `rows`, with its factor.
-fn best_fixed(rows: &[Row]) -> Option<(f32, f64)> {
-    rows.iter()
+fn best_fixed<'a>(rows: impl IntoIterator<Item = &'a Row>) -> Option<(f32, f64)> {
+    rows.into_iter()
         .filter(|r| r.method == Method::RegularizedDifference)
         .map(|r| (r.factor.map_or(f32::NAN, |f| f[0]), r.mse_corrected))
         .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// The note comparing the automatic row with the best fixed factor `(factor, MSE)`.
+fn auto_against_best(auto: &Row, (factor, mse): (f32, f64)) -> String {
+    format!(
+        "auto factor {:?} MSE {:.3e}; best fixed factor {factor} MSE {mse:.3e}; auto / best {:.2}",
+        auto.factor.unwrap_or([f32::NAN; 3]),
+        auto.mse_corrected,
+        auto.mse_corrected / mse
+    )
 }
 
 /// Fig. 6: σ_t sweep on the Bunny at one budget, with the pilot's factor against the
@@ -329,19 +339,17 @@ fn fig6(opts: &FigureOptions) -> Result<PathBuf> {
             extra,
         )?;
         notes.extend(run.notes);
-        if let (Some((f, mse)), Some(auto)) = (
+        if let (Some(best_row), Some(auto)) = (
             best_fixed(&run.rows),
             run.rows
                 .iter()
                 .find(|r| r.method == Method::RegularizedAuto),
         ) {
             notes.push(format!(
-                "sigma_t {s}: auto factor {:?} MSE {:.3e}; best fixed factor {f} MSE {mse:.3e}; auto / best {:.2}",
-                auto.factor.unwrap_or([f32::NAN; 3]),
-                auto.mse_corrected,
-                auto.mse_corrected / mse
+                "sigma_t {s}: {}",
+                auto_against_best(auto, best_row)
             ));
-            best.push((sigma_t, mse));
+            best.push((sigma_t, best_row.1));
         }
         points.push(Point {
             x: sigma_t,
@@ -442,14 +450,8 @@ fn fig9(opts: &FigureOptions) -> Result<PathBuf> {
         .iter()
         .find(|r| r.method == Method::RegularizedAuto)
         .ok_or_else(|| anyhow!("fig9: the automatic row did not run"))?;
-    let all_rows: Vec<Row> = points.iter().flat_map(|p| p.rows.clone()).collect();
-    if let Some((f, mse)) = best_fixed(&all_rows) {
-        notes.push(format!(
-            "auto factor {:?} MSE {:.3e}; best fixed factor {f} MSE {mse:.3e}; auto / best {:.2}",
-            auto.factor.unwrap_or([f32::NAN; 3]),
-            auto.mse_corrected,
-            auto.mse_corrected / mse
-        ));
+    if let Some(best_row) = best_fixed(points.iter().flat_map(|p| &p.rows)) {
+        notes.push(auto_against_best(auto, best_row));
     }
     let volpath = mse_series(&points, Method::Volpath);
     let mean_volpath = volpath.iter().map(|p| p.1).sum::<f64>() / volpath.len().max(1) as f64;

@@ -298,3 +298,10 @@ pub fn regularize_error(e: RegularizeError) -> anyhow::Error {
     };
     anyhow!("{flag}: {e}")
 }
+
+/// The warning for samples the render dropped as NaN or Inf (none: nothing said).
+pub fn warn_invalid_samples(count: u64) {
+    if count > 0 {
+        eprintln!("warning: {count} samples were NaN or Inf and were dropped");
+    }
+}

@@ -13,7 +13,8 @@ use mediareg::regularize::spatial::BilateralParams;
 use mediareg::regularize::{self, CBeta, Method, Reproject};
 
 use crate::common::{
-    fmt3, medium_error, parse_point, prepare, regularize_error, sibling, SceneArgs,
+    fmt3, medium_error, parse_point, prepare, regularize_error, sibling, warn_invalid_samples,
+    SceneArgs,
 };
 
 /// The paper's method: render at source albedo factor × the scene's, denoise the
@@ -232,12 +233,7 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
             written.push(png.display().to_string());
         }
     }
-    if r.invalid_samples > 0 {
-        eprintln!(
-            "warning: {} samples were NaN or Inf and were dropped",
-            r.invalid_samples
-        );
-    }
+    warn_invalid_samples(r.invalid_samples);
     if r.fallbacks > 0 {
         eprintln!(
             "warning: {} channel values could not be predicted (negative or not finite) and keep the source radiance",

@@ -11,7 +11,7 @@ use mediareg::integrator::{self, volpath::Gradient};
 use mediareg::scene::ray_log::{self, RayLog};
 use mediareg::scene::{IntegratorKind, Scene};
 
-use crate::common::{medium_error, prepare, sibling, SceneArgs};
+use crate::common::{medium_error, prepare, sibling, warn_invalid_samples, SceneArgs};
 use crate::interrupt::{install_handler, INTERRUPT};
 
 /// Render a Mitsuba 3 scene file to OUT.exr (linear RGB) and OUT.png (sRGB preview).
@@ -109,12 +109,7 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         image::write_png(&out_png, img)?;
         written.push(out_png.display().to_string());
     }
-    if stats.invalid_samples > 0 {
-        eprintln!(
-            "warning: {} samples were NaN or Inf and were dropped",
-            stats.invalid_samples
-        );
-    }
+    warn_invalid_samples(stats.invalid_samples);
     println!(
         "rendered {}x{} at {} spp in {:.2} s ({:.2} M samples/s); wrote {}",
         img.width,
