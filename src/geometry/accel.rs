@@ -426,16 +426,30 @@ impl Accel {
     /// Closest hit along `o + t d`, 0 < t < tmax.
     #[inline(always)]
     pub fn intersect(&self, shapes: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> Option<Hit> {
+        self.intersect_where(shapes, o, d, tmax, |_| true)
+    }
+
+    /// Closest hit along `o + t d`, 0 < t < tmax, with a shape `keep` accepts (with
+    /// `|_| true`, as [`Accel::intersect`], the test compiles away).
+    #[inline(always)]
+    pub fn intersect_where(
+        &self,
+        shapes: &[Geometry],
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+        keep: impl Fn(u32) -> bool,
+    ) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_best = tmax;
         // The analytic shapes first: a hit among them shortens the BVH's ray.
-        for &shape in &self.analytic {
+        for &shape in self.analytic.iter().filter(|&&s| keep(s)) {
             if let Some(t) = Self::analytic_intersect(shapes, shape, o, d, t_best) {
                 t_best = t;
                 best = Some(Hit::analytic(shape, t));
             }
         }
-        for c in &self.cuboids {
+        for c in self.cuboids.iter().filter(|c| keep(c.shape)) {
             if let Some(h) = c.intersect(o, d, t_best) {
                 t_best = h.t;
                 best = Some(cuboid_hit(c, h));
@@ -446,6 +460,9 @@ impl Accel {
         }
         if self.prims.len() <= BRUTE_FORCE_PRIMS {
             for i in 0..self.prims.len() {
+                if !keep(self.prims[i].shape) {
+                    continue;
+                }
                 if let Some((t, u, v)) = self.prim_intersect(shapes, i, o, d, t_best) {
                     t_best = t;
                     best = Some(self.hit(i, t, u, v));
@@ -456,6 +473,9 @@ impl Accel {
         let (ray, back) = traversal_ray(o, d, t_best);
         let mut best_prim = None;
         self.traverse(ray, |ray_tmax, id| {
+            if !keep(self.prims[id].shape) {
+                return f32::INFINITY;
+            }
             match self.leaf_intersect(shapes, id, o, d, ray_tmax - back) {
                 Some((t, u, v)) => {
                     best_prim = Some((id, t, u, v));

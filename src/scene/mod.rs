@@ -8,6 +8,7 @@ pub mod film;
 pub mod prepare;
 pub mod ray_log;
 pub mod shot;
+pub mod ties;
 
 use glam::{Vec2, Vec3A};
 
@@ -87,6 +88,9 @@ pub struct Scene {
     /// Per medium: the closed convex shape it fills with nothing else inside, if it
     /// is one (see `geometry::convex`).
     pub convex_media: Vec<Option<ConvexBoundary>>,
+    /// Per shape: where it is a null medium boundary with a surface coincident with
+    /// it, whose hits there give way to that surface (see `ties`); empty when none is.
+    pub tied_boundaries: Vec<ties::Ties>,
     pub bsphere: BSphere,
     /// The scene's size: the largest half-extent of its bounding box (1 when empty).
     /// Spawned rays are offset relative to it (see [`crate::geometry::offset_point`]).
@@ -158,7 +162,12 @@ impl Scene {
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<SurfaceInteraction> {
         self.log_cast(ray_log::Cast::ClosestHit, o, d, tmax);
         let hit = self.accel.intersect(&self.geometries, o, d, tmax)?;
-        Some(self.interaction(o, d, &hit))
+        let si = self.interaction(o, d, &hit);
+        if !self.tied_boundaries.is_empty() && self.tied_boundaries[hit.shape as usize].at(hit.prim)
+        {
+            return Some(self.surface_in_boundary(o, d, si));
+        }
+        Some(si)
     }
 
     /// [`Scene::intersect`] for a ray that starts in `medium`: where the medium fills

@@ -7,6 +7,7 @@
 use glam::Vec3A;
 
 use super::shot::Shot;
+use super::ties::Ties;
 use super::{IntegratorKind, IntegratorSettings, Scene, ShapeInfo};
 use crate::bsdf::Bsdf;
 use crate::emitter::selection::EmitterSelection;
@@ -124,10 +125,21 @@ impl Scene {
             area_emitters_within_media(&emitters, &geometries, &shapes, media.len());
         let emitters_unreachable =
             media_sealed_from_emitters(&emitters, &geometries, &shapes, &shadow_pass, media.len());
+        let tied_boundaries =
+            super::ties::tied_boundaries(&geometries, &shapes, &bsdfs, &accel, offset_scale);
+        // A medium whose boundary has a surface in it is no convex medium: rays in it
+        // must see that surface.
         let convex_media = (0..media.len() as u32)
-            .map(|mi| convex_medium(mi, camera_medium, &geometries, &shapes, &accel))
+            .map(|mi| {
+                let tied = |s: usize| tied_boundaries.get(s).is_some_and(|t| *t != Ties::None);
+                if (0..shapes.len()).any(|s| tied(s) && shapes[s].interior == Some(mi)) {
+                    return None;
+                }
+                convex_medium(mi, camera_medium, &geometries, &shapes, &accel)
+            })
             .collect();
         Scene {
+            tied_boundaries,
             convex_media,
             emitters_unreachable,
             shadow_pass,
