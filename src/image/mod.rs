@@ -2,6 +2,7 @@
 //! (row 0 at the top, as Mitsuba writes them) and a tonemapped sRGB PNG preview. Files are written to a temporary name and renamed, so an
 //! interrupted run never leaves a corrupt image.
 
+pub mod merge;
 pub mod stats;
 
 use std::path::{Path, PathBuf};

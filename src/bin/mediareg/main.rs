@@ -1,8 +1,9 @@
 //! The `mediareg` command line: argument parsing and reporting only, one file per
-//! command (render, regularize, and the paper's table, figures and report).
+//! command (render, regularize, merge, and the paper's table, figures and report).
 
 mod common;
 mod interrupt;
+mod merge;
 mod paper;
 mod regularize;
 mod render;
@@ -49,6 +50,9 @@ enum Command {
     /// with their numbers (figN.json), from reduced-size sweeps against the references
     /// in reference/figures/ (Fig. 7: the full-size cube).
     Figures(paper::FiguresArgs),
+    /// Merge renders of one shot made in chunks (distinct seeds) into OUT.exr, weighted
+    /// by each chunk's spp, and OUT_var.exr, the variance of that mean.
+    Merge(merge::MergeArgs),
 }
 
 fn main() -> ExitCode {
@@ -74,5 +78,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Table(args) => paper::table(args),
         Command::Report(args) => paper::report(args),
         Command::Figures(args) => paper::figures(args),
+        Command::Merge(args) => merge::run(args),
     }
 }
