@@ -13,10 +13,11 @@ mod common;
 
 use std::f64::consts::PI;
 
-use common::check_against_reference;
+use common::scene_text::{self, build_desc, load_or_build_error, SENSOR};
+use common::{check_against_reference, check_window_against_reference};
 use glam::{Vec2, Vec3, Vec3A};
-use mediareg::bsdf::{Blend, Bsdf, Mask, Principled, RoughConductor};
 use mediareg::bsdf::microfacet::{Microfacet, MicrofacetType};
+use mediareg::bsdf::{Blend, Bsdf, Mask, Principled, RoughConductor};
 use mediareg::image::stats::Comparison;
 use mediareg::sampling::independent::Pcg32;
 use mediareg::texture::Texture;
@@ -43,6 +44,82 @@ fn check_volpath(extra: &[(&str, &str)], seed: u64) -> Comparison {
     )
 }
 
+/// A second parameter set (reference `principled_set2`): sphere C half transmissive
+/// (where Mitsuba's lobe choice depends on the sampled normal), B nearly fully
+/// anisotropic, A smoother with clearcoat 1 and sheen 1.5, panel and floor at 0.5.
+const SET2: [(&str, &str); 7] = [
+    ("c_spec_trans", "0.5"),
+    ("b_anisotropic", "0.95"),
+    ("a_clearcoat", "1"),
+    ("a_roughness", "0.15"),
+    ("a_sheen", "1.5"),
+    ("mask_opacity", "0.5"),
+    ("floor_weight", "0.5"),
+];
+
+#[test]
+fn second_parameter_set_matches_mitsuba() {
+    let c = check_against_reference("principled_set2", "principled", &SET2, CHUNKS, SPP, 111);
+    assert!(c.passed, "{c}");
+}
+
+/// In the second set, sphere C's spec_trans 5% lower (on sphere C's window).
+#[test]
+fn second_set_spec_trans_off_by_five_percent_is_detected() {
+    let run = |changed: &[(&str, &str)], seed| {
+        let mut params: Vec<(&str, &str)> = SET2
+            .iter()
+            .filter(|(k, _)| !changed.iter().any(|(c, _)| c == k))
+            .copied()
+            .collect();
+        params.extend_from_slice(changed);
+        let (name, w) = ("principled_set2", WIN_C);
+        check_window_against_reference(name, "principled", &params, w, CHUNKS, SPP_WINDOW, seed)
+    };
+    let same = run(&[], 112);
+    assert!(same.passed, "the window itself: {same}");
+    let off = run(&[("c_spec_trans", "0.475")], 113);
+    assert!(
+        !off.passed,
+        "spec_trans 0.475 for 0.5 went undetected: {off}"
+    );
+}
+
+/// Windows of the 64 × 48 film around what a power test changes: spheres A, B, C,
+/// the masked panel, the floor in front.
+const WIN_A: [usize; 4] = [2, 13, 18, 20];
+const WIN_B: [usize; 4] = [23, 11, 18, 20];
+const WIN_C: [usize; 4] = [44, 13, 19, 20];
+const WIN_PANEL: [usize; 4] = [0, 4, 64, 11];
+/// A window's share of the film is small: more samples per pixel for the same time.
+const SPP_WINDOW: u32 = 2048;
+
+/// A power test on a window of reference `name` rendered with `base`: the window must
+/// match the reference (the same comparison), and must not with `changed` added.
+fn window_power_of(
+    name: &str,
+    base: &[(&str, &str)],
+    window: [usize; 4],
+    changed: &[(&str, &str)],
+    seed: u64,
+) -> (Comparison, Comparison) {
+    let run = |params: &[(&str, &str)], seed| {
+        check_window_against_reference(name, "principled", params, window, CHUNKS, SPP_WINDOW, seed)
+    };
+    let mut off = base.to_vec();
+    off.extend_from_slice(changed);
+    (run(base, seed), run(&off, seed + 1000))
+}
+
+/// [`window_power_of`] on the `path` reference.
+fn window_power(
+    window: [usize; 4],
+    changed: &[(&str, &str)],
+    seed: u64,
+) -> (Comparison, Comparison) {
+    window_power_of("principled", &[], window, changed, seed)
+}
+
 #[test]
 fn principled_blend_mask_match_mitsuba_path() {
     let c = check_path(&[], 101);
@@ -58,36 +135,44 @@ fn principled_blend_mask_match_mitsuba_volpath() {
 /// Sphere A without its clearcoat lobe.
 #[test]
 fn clearcoat_switched_off_is_detected() {
-    let c = check_path(&[("a_clearcoat", "0")], 103);
-    assert!(!c.passed, "clearcoat 0 for 0.7 went undetected: {c}");
+    let (same, off) = window_power(WIN_A, &[("a_clearcoat", "0")], 103);
+    assert!(same.passed, "the window itself: {same}");
+    assert!(!off.passed, "clearcoat 0 for 0.7 went undetected: {off}");
 }
 
 /// Sphere A without its sheen lobe.
 #[test]
 fn sheen_switched_off_is_detected() {
-    let c = check_path(&[("a_sheen", "0")], 104);
-    assert!(!c.passed, "sheen 0 for 0.8 went undetected: {c}");
+    let (same, off) = window_power(WIN_A, &[("a_sheen", "0")], 104);
+    assert!(same.passed, "the window itself: {same}");
+    assert!(!off.passed, "sheen 0 for 0.8 went undetected: {off}");
 }
 
 /// Sphere B isotropic instead of anisotropic 0.6.
 #[test]
 fn anisotropy_switched_off_is_detected() {
-    let c = check_path(&[("b_anisotropic", "0")], 105);
-    assert!(!c.passed, "anisotropic 0 for 0.6 went undetected: {c}");
+    let (same, off) = window_power(WIN_B, &[("b_anisotropic", "0")], 105);
+    assert!(same.passed, "the window itself: {same}");
+    assert!(!off.passed, "anisotropic 0 for 0.6 went undetected: {off}");
 }
 
 /// Sphere B's metallic 5% lower.
 #[test]
 fn metallic_off_by_five_percent_is_detected() {
-    let c = check_path(&[("b_metallic", "0.855")], 106);
-    assert!(!c.passed, "metallic 0.855 for 0.9 went undetected: {c}");
+    let (same, off) = window_power(WIN_B, &[("b_metallic", "0.855")], 106);
+    assert!(same.passed, "the window itself: {same}");
+    assert!(!off.passed, "metallic 0.855 for 0.9 went undetected: {off}");
 }
 
 /// Sphere C's spec_trans 5% lower (more of its light in the diffuse lobe).
 #[test]
 fn spec_trans_off_by_five_percent_is_detected() {
-    let c = check_path(&[("c_spec_trans", "0.855")], 107);
-    assert!(!c.passed, "spec_trans 0.855 for 0.9 went undetected: {c}");
+    let (same, off) = window_power(WIN_C, &[("c_spec_trans", "0.855")], 107);
+    assert!(same.passed, "the window itself: {same}");
+    assert!(
+        !off.passed,
+        "spec_trans 0.855 for 0.9 went undetected: {off}"
+    );
 }
 
 /// The floor's blend weight (the checkerboard's color1) 5% lower.
@@ -100,10 +185,20 @@ fn blend_weight_off_by_five_percent_is_detected() {
 /// The panel's opacity (the checkerboard's color0) 5% lower, under path and volpath.
 #[test]
 fn mask_opacity_off_by_five_percent_is_detected() {
-    let c = check_path(&[("mask_opacity", "0.76")], 109);
-    assert!(!c.passed, "path: opacity 0.76 for 0.8 went undetected: {c}");
-    let c = check_volpath(&[("mask_opacity", "0.76")], 110);
-    assert!(!c.passed, "volpath: opacity 0.76 for 0.8 went undetected: {c}");
+    let changed = [("mask_opacity", "0.76")];
+    let (same, off) = window_power(WIN_PANEL, &changed, 109);
+    assert!(same.passed, "path, the window itself: {same}");
+    assert!(
+        !off.passed,
+        "path: opacity 0.76 for 0.8 went undetected: {off}"
+    );
+    let volpath = [("integrator", "volpath")];
+    let (same, off) = window_power_of("principled_volpath", &volpath, WIN_PANEL, &changed, 110);
+    assert!(same.passed, "volpath, the window itself: {same}");
+    assert!(
+        !off.passed,
+        "volpath: opacity 0.76 for 0.8 went undetected: {off}"
+    );
 }
 
 // ---- Sampling against evaluation ----
@@ -182,7 +277,11 @@ fn check_sampling(name: &str, b: &Bsdf, wi: Vec3A) {
             valid += 1;
             let (f, pdf) = b.eval_pdf(wi, bs.wo, uv);
             let rel = |a: f32, b: f32| (a - b).abs() / b.abs().max(1e-3);
-            assert!(rel(bs.pdf, pdf) < 2e-3, "{name}: pdf {pdf} vs sampled {}", bs.pdf);
+            assert!(
+                rel(bs.pdf, pdf) < 2e-3,
+                "{name}: pdf {pdf} vs sampled {}",
+                bs.pdf
+            );
             let w = f / pdf;
             assert!(
                 (w - bs.weight).abs().max_element() <= 2e-3 * w.max_element().max(1.0),
@@ -276,7 +375,11 @@ fn principled_lobes_sample_what_they_evaluate() {
         roughness: c(0.4),
         ..base()
     }));
-    check_sampling("spec_trans 1 inside", &glass, Vec3A::new(0.2, -0.3, -0.8).normalize());
+    check_sampling(
+        "spec_trans 1 inside",
+        &glass,
+        Vec3A::new(0.2, -0.3, -0.8).normalize(),
+    );
 }
 
 /// blendbsdf and mask sample their mixtures consistently with their eval_pdf; the
@@ -314,4 +417,176 @@ fn blend_and_mask_sample_what_they_evaluate() {
     let (fd, _) = diffuse.eval_pdf(wi, wo, Vec2::ZERO);
     let (fm, _) = metal.eval_pdf(wi, wo, Vec2::ZERO);
     assert!((fb - (fd * 0.65 + fm * 0.35)).abs().max_element() < 1e-6);
+}
+
+// ---- Loading ----
+
+fn build_err(tag: &str, bsdf: &str) -> String {
+    let text = format!(
+        "<scene version=\"3.0.0\">{SENSOR}<shape type=\"rectangle\">{bsdf}</shape></scene>"
+    );
+    load_or_build_error(tag, scene_text::load_text("principled", tag, &text, &[]))
+}
+
+/// Mistakes are refused with the file, line and what to do, never rendered otherwise.
+#[test]
+fn bad_principled_blend_and_mask_are_refused_clearly() {
+    let cases = [
+        (
+            "both",
+            r#"<bsdf type="principled"><float name="eta" value="1.4"/><float name="specular" value="0.5"/></bsdf>"#,
+            "either eta or specular",
+        ),
+        (
+            "unknown",
+            r#"<bsdf type="principled"><float name="subsurface" value="0.5"/></bsdf>"#,
+            "unreferenced property \"subsurface\"",
+        ),
+        (
+            "aniso",
+            r#"<bsdf type="principled"><float name="anisotropic" value="1.5"/></bsdf>"#,
+            "anisotropic",
+        ),
+        (
+            "noweight",
+            r#"<bsdf type="blendbsdf"><bsdf type="diffuse"/><bsdf type="conductor"/></bsdf>"#,
+            "needs a \"weight\"",
+        ),
+        (
+            "onechild",
+            r#"<bsdf type="blendbsdf"><float name="weight" value="0.3"/><bsdf type="diffuse"/></bsdf>"#,
+            "exactly two nested",
+        ),
+        (
+            "twomasked",
+            r#"<bsdf type="mask"><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>"#,
+            "exactly one nested",
+        ),
+    ];
+    for (tag, bsdf, want) in cases {
+        let e = build_err(tag, bsdf);
+        assert!(e.contains(want), "{tag}: {e}");
+        assert!(e.contains("scene.xml:"), "{tag}: no file:line in {e}");
+    }
+}
+
+/// Mitsuba's defaults and `get_flag`: `specular` 0.5 is η 1.5; a lobe given as the float
+/// 0 is off, given otherwise it is on; mask's opacity defaults to 0.5.
+#[test]
+fn principled_defaults_and_flags_are_mitsubas() {
+    let text = format!(
+        r#"<scene version="3.0.0">{SENSOR}<shape type="rectangle"><bsdf type="principled"><float name="sheen" value="0"/><rgb name="clearcoat" value="0, 0, 0"/></bsdf></shape>
+        <shape type="sphere"><bsdf type="mask"><bsdf type="principled"/></bsdf></shape></scene>"#
+    );
+    let desc = scene_text::load_text("principled", "defaults", &text, &[]).unwrap();
+    let scene = build_desc("defaults", &desc);
+    let principled = scene.bsdfs.iter().find_map(|b| match b {
+        Bsdf::Principled(p) => Some(p),
+        _ => None,
+    });
+    let p = principled.expect("a principled bsdf");
+    assert!((p.eta - 1.5).abs() < 1e-6, "eta {}", p.eta);
+    assert!(p.sheen.is_none() && p.clearcoat.is_some() && p.metallic.is_none());
+    assert_eq!(p.roughness, Vec3::splat(0.5));
+    assert_eq!(p.base_color, Vec3::splat(0.5));
+    let mask = scene.bsdfs.iter().find_map(|b| match b {
+        Bsdf::Mask(m) => Some(m),
+        _ => None,
+    });
+    assert_eq!(mask.expect("a mask").opacity, Vec3::splat(0.5));
+}
+
+/// eval_pdf against Mitsuba 3.9.1 (`scalar_rgb`, `BSDF::eval_pdf` of `principled`
+/// plugins made by `mi.load_dict` with the same parameters, at the same local
+/// directions): front reflection, transmission, from inside out and inside reflection.
+#[test]
+fn principled_matches_mitsuba_values() {
+    use mediareg::bsdf::principled::eta_from_specular;
+    let n = |x: f32, y: f32, z: f32| Vec3A::new(x, y, z).normalize();
+    let rgb = |r, g, b| Texture::Constant(Vec3::new(r, g, b));
+    let plastic = Principled {
+        base_color: rgb(0.8, 0.5, 0.2),
+        roughness: c(0.4),
+        sheen: some(0.8),
+        sheen_tint: some(0.5),
+        clearcoat: some(0.7),
+        clearcoat_gloss: c(0.6),
+        spec_tint: some(0.3),
+        flatness: some(0.4),
+        eta: eta_from_specular(0.6),
+        spec_srate: 0.8,
+        clearcoat_srate: 2.0,
+        ..base()
+    };
+    let metal = Principled {
+        base_color: rgb(0.9, 0.75, 0.4),
+        metallic: some(0.9),
+        roughness: c(0.5),
+        anisotropic: some(0.6),
+        ..base()
+    };
+    let glass = Principled {
+        base_color: rgb(0.85, 0.95, 0.9),
+        spec_trans: some(0.5),
+        eta: 1.45,
+        roughness: c(0.3),
+        ..base()
+    };
+    let dirs = [
+        (n(0.5, 0.2, 0.8), n(-0.3, 0.4, 0.7)),
+        (n(0.5, 0.2, 0.8), n(-0.2, -0.1, -0.9)),
+        (n(0.3, -0.2, -0.7), n(-0.5, 0.3, 0.6)),
+        (n(0.3, -0.2, -0.7), n(-0.4, 0.3, -0.7)),
+    ];
+    // Mitsuba's (f · |cos θ_o|, pdf) per BSDF and direction pair, in `dirs`' order.
+    type Want = [([f32; 3], f32); 4];
+    let wants: [(&str, Principled, Want); 3] = [
+        (
+            "plastic",
+            plastic,
+            [
+                ([0.193_755_03, 0.122_833_73, 0.051_912_397], 0.164_620_76),
+                ([0.0; 3], 0.0),
+                ([0.0; 3], 0.0),
+                ([0.0; 3], 2.386_979),
+            ],
+        ),
+        (
+            "metal",
+            metal,
+            [
+                ([0.058_931_112, 0.049_139_213, 0.026_291_443], 0.063_658_72),
+                ([0.0; 3], 0.0),
+                ([0.0; 3], 0.0),
+                ([0.0; 3], 1.135_270_5),
+            ],
+        ),
+        (
+            "glass",
+            glass,
+            [
+                ([0.111_156_754, 0.124_107_62, 0.117_632_18], 0.097_058_55),
+                ([0.109_665_83, 0.115_937_43, 0.112_845_2], 0.166_748_12),
+                ([22.2983, 23.5735, 22.944_76], 23.050_71),
+                ([0.095_987_8; 3], 0.192_173_78),
+            ],
+        ),
+    ];
+    let rel = |a: f32, b: f32| (a - b).abs() / b.abs().max(1e-6);
+    for (name, p, want) in wants {
+        let b = Bsdf::Principled(Box::new(p));
+        for ((wi, wo), (f_want, pdf_want)) in dirs.iter().zip(want) {
+            let (f, pdf) = b.eval_pdf(*wi, *wo, Vec2::ZERO);
+            assert!(
+                rel(pdf, pdf_want) < 2e-3 || (pdf_want == 0.0 && pdf == 0.0),
+                "{name} {wi} → {wo}: pdf {pdf}, Mitsuba {pdf_want}"
+            );
+            for k in 0..3 {
+                assert!(
+                    rel(f[k], f_want[k]) < 2e-3 || (f_want[k] == 0.0 && f[k] == 0.0),
+                    "{name} {wi} → {wo}: f {f}, Mitsuba {f_want:?}"
+                );
+            }
+        }
+    }
 }

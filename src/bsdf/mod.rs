@@ -103,7 +103,9 @@ impl Bsdf {
             Bsdf::TwoSided(b) => b[0].is_textured() || b[1].is_textured(),
             Bsdf::Principled(p) => p.is_textured(),
             Bsdf::Blend(b) => {
-                b.weight.constant().is_none() || b.bsdfs[0].is_textured() || b.bsdfs[1].is_textured()
+                b.weight.constant().is_none()
+                    || b.bsdfs[0].is_textured()
+                    || b.bsdfs[1].is_textured()
             }
             Bsdf::Mask(m) => m.opacity.constant().is_none() || m.nested.is_textured(),
             _ => false,

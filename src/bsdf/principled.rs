@@ -26,8 +26,7 @@ use glam::{Vec2, Vec3, Vec3A};
 use super::fresnel::{fresnel, reflect, refract};
 use super::microfacet::{Microfacet, MicrofacetType};
 use super::principled_lobes::{
-    clearcoat_g, mac_mic_compatible, principled_fresnel, schlick_angle_weight, schlick_weight,
-    Gtr1,
+    clearcoat_g, mac_mic_compatible, principled_fresnel, schlick_angle_weight, schlick_weight, Gtr1,
 };
 use super::BsdfSample;
 use crate::sampling::warp::square_to_cosine_hemisphere;
@@ -248,8 +247,7 @@ impl Principled {
                         // Hanrahan–Krueger's fake subsurface, Fss90 from the retro term.
                         let fss90 = rr / 2.0;
                         let fss = (1.0 + (fss90 - 1.0) * fo) * (1.0 + (fss90 - 1.0) * fi);
-                        let f_ss =
-                            1.25 * (fss * (1.0 / (cos_o.abs() + cos_i.abs()) - 0.5) + 0.5);
+                        let f_ss = 1.25 * (fss * (1.0 / (cos_o.abs() + cos_i.abs()) - 0.5) + 0.5);
                         let t = flatness.eval_1(uv);
                         f_diff + f_retro + t * (f_ss - (f_diff + f_retro))
                     }
@@ -311,8 +309,7 @@ impl Principled {
         if reflect {
             pdf += p_diffuse * FRAC_1_PI * cos_o;
         }
-        if self.spec_trans.is_some() && refract && mac_mic_compatible(wh, wi, wo, cos_i, false)
-        {
+        if self.spec_trans.is_some() && refract && mac_mic_compatible(wh, wi, wo, cos_i, false) {
             pdf += p_trans * p.distr.pdf(wi_up, wh) * dwh_dwo;
         }
         if self.clearcoat.is_some() && reflect_ok {
@@ -390,4 +387,3 @@ impl Principled {
 pub fn eta_from_specular(specular: f32) -> f32 {
     2.0 / (1.0 - (0.08 * specular).sqrt()) - 1.0
 }
-

@@ -109,7 +109,13 @@ pub fn schlick_r0_eta(eta: f32) -> f32 {
 /// outer side for reflection; wi outside and wo inside for refraction (m turned to
 /// wi's side of the surface by the sign of cos θ_i).
 #[inline]
-pub fn mac_mic_compatible(m: Vec3A, wi: Vec3A, wo: Vec3A, cos_theta_i: f32, reflection: bool) -> bool {
+pub fn mac_mic_compatible(
+    m: Vec3A,
+    wi: Vec3A,
+    wo: Vec3A,
+    cos_theta_i: f32,
+    reflection: bool,
+) -> bool {
     let m = if cos_theta_i < 0.0 { -m } else { m };
     if reflection {
         wi.dot(m) > 0.0 && wo.dot(m) > 0.0
@@ -143,7 +149,8 @@ pub fn principled_fresnel(
             Vec3::ONE
         };
         let eta_it = if cos_theta_i >= 0.0 { eta } else { 1.0 / eta };
-        f_schlick += calc_schlick(c_tint * schlick_r0_eta(eta_it), cos_theta_i, eta) * ((1.0 - m) * st);
+        f_schlick +=
+            calc_schlick(c_tint * schlick_r0_eta(eta_it), cos_theta_i, eta) * ((1.0 - m) * st);
     }
     Vec3::splat((1.0 - m) * (1.0 - spec_tint.unwrap_or(0.0)) * f_dielectric) + f_schlick
 }

@@ -12,8 +12,8 @@ use crate::bsdf::dielectric::named_ior;
 use crate::bsdf::microfacet::{Microfacet, MicrofacetType};
 use crate::bsdf::principled::eta_from_specular;
 use crate::bsdf::{
-    Blend, Bsdf, Conductor, Mask, Principled, Dielectric, Plastic, RoughConductor, RoughDielectric, RoughPlastic,
-    ThinDielectric,
+    Blend, Bsdf, Conductor, Dielectric, Mask, Plastic, Principled, RoughConductor, RoughDielectric,
+    RoughPlastic, ThinDielectric,
 };
 use crate::error::{Result, SceneError};
 use crate::texture::Texture;
@@ -198,7 +198,11 @@ impl Builder<'_> {
 impl Builder<'_> {
     /// Whether `name` is given, as a property or a nested object.
     fn given(&self, p: &Props, name: &str) -> bool {
-        p.has(name) || p.obj.children.iter().any(|c| c.name.as_deref() == Some(name))
+        p.has(name)
+            || p.obj
+                .children
+                .iter()
+                .any(|c| c.name.as_deref() == Some(name))
     }
 
     /// A scalar parameter of `principled` that switches its lobe's code on (Mitsuba's
@@ -209,8 +213,20 @@ impl Builder<'_> {
             return Ok(None);
         }
         let zero_float = matches!(p.get(name), Some((Value::Float(v), _)) if *v == 0.0);
-        let t = self.reflectance(p, name, Vec3::ZERO)?;
+        let t = self.scalar_param(p, name, 0.0)?;
         Ok((!zero_float).then_some(t))
+    }
+
+    /// A scalar parameter read by `eval_1`: a texture (texels in [0, 1]), or a float or
+    /// rgb, finite and nonnegative (Mitsuba bounds none of them; a sheen or clearcoat
+    /// above 1 is a stronger lobe).
+    fn scalar_param(&self, p: &Props, name: &str, default: f32) -> Result<Texture> {
+        if p.named_child_of(name, ObjectKind::Texture)?.is_some() {
+            return self.reflectance(p, name, Vec3::splat(default));
+        }
+        Ok(Texture::Constant(
+            p.color_nonneg(name, Vec3::splat(default))?,
+        ))
     }
 
     /// Mitsuba 3's `principled`, every parameter with its name and default.
@@ -218,7 +234,8 @@ impl Builder<'_> {
         let spec_trans = self.lobe_param(&p, "spec_trans")?;
         let eta = match (p.has("eta"), p.has("specular")) {
             (true, true) => {
-                return Err(p.error("give either eta or specular, not both")
+                return Err(p
+                    .error("give either eta or specular, not both")
                     .with_hint("specular s stands for eta = 2 / (1 − √(0.08 s)) − 1"))
             }
             (true, false) => {
@@ -242,10 +259,17 @@ impl Builder<'_> {
             }
         };
         let rate = |name| -> Result<f32> { Ok(p.float_in(name, 1.0, 0.0, 1e6)? as f32) };
+        let anisotropic = self.lobe_param(&p, "anisotropic")?;
+        // α_u = roughness² / √(1 − 0.9 anisotropic) needs anisotropic ≤ 1/0.9.
+        if let Some(a) = anisotropic.as_ref().and_then(Texture::constant) {
+            if a.max_element() > 1.0 {
+                return Err(p.error(format!("anisotropic {a} must be in [0, 1]")));
+            }
+        }
         let b = Principled {
             base_color: self.reflectance(&p, "base_color", Vec3::splat(0.5))?,
-            roughness: self.reflectance(&p, "roughness", Vec3::splat(0.5))?,
-            anisotropic: self.lobe_param(&p, "anisotropic")?,
+            roughness: self.scalar_param(&p, "roughness", 0.5)?,
+            anisotropic,
             spec_trans,
             sheen: self.lobe_param(&p, "sheen")?,
             sheen_tint: self.lobe_param(&p, "sheen_tint")?,
@@ -253,7 +277,7 @@ impl Builder<'_> {
             spec_tint: self.lobe_param(&p, "spec_tint")?,
             metallic: self.lobe_param(&p, "metallic")?,
             clearcoat: self.lobe_param(&p, "clearcoat")?,
-            clearcoat_gloss: self.reflectance(&p, "clearcoat_gloss", Vec3::ZERO)?,
+            clearcoat_gloss: self.scalar_param(&p, "clearcoat_gloss", 0.0)?,
             eta,
             spec_srate: rate("main_specular_sampling_rate")?,
             clearcoat_srate: rate("clearcoat_sampling_rate")?,

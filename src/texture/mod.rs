@@ -120,7 +120,7 @@ mod tests {
         assert_eq!(t.eval(Vec2::new(0.3, 0.1)), Vec3::ONE); // u' 0.6: high, v' low
         assert_eq!(t.eval(Vec2::new(0.3, 0.3)), Vec3::ZERO);
         assert_eq!(t.eval(Vec2::new(0.6, 0.1)), Vec3::ZERO); // u' 1.2: low again
-        // eval_1 takes the other colour, as Mitsuba 3.9.1's checkerboard does.
+                                                             // eval_1 takes the other colour, as Mitsuba 3.9.1's checkerboard does.
         assert_eq!(t.eval_1(Vec2::new(0.1, 0.1)), 1.0);
         assert_eq!(t.eval_1(Vec2::new(0.3, 0.1)), 0.0);
     }
