@@ -45,7 +45,7 @@ impl Blend {
         let mut bs = self.bsdfs[first].sample(wi, s1, s2, uv)?;
         let (f_other, pdf_other) = self.bsdfs[1 - first].eval_pdf(wi, bs.wo, uv);
         let pdf = (1.0 - p_pick) * pdf_other + p_pick * bs.pdf;
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         // (f_other (1 − p) + (weight · pdf) p) / pdf_mixed, weight · pdf being the

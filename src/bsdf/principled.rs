@@ -367,7 +367,7 @@ impl Principled {
             wo
         };
         let pdf = self.pdf_at(&p, wi, wo, uv);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         let weight = self.eval_at(&p, wi, wo, uv) / pdf;

@@ -125,8 +125,8 @@ pub fn mac_mic_compatible(
 }
 
 /// The principled Fresnel term of the main specular lobe from outside:
-/// (1 − metallic)(1 − spec_tint) F_dielectric + metallic · Schlick(base_color)
-/// + (1 − metallic) spec_tint · Schlick(c_tint R0(η)), with c_tint = base_color /
+/// (1 − metallic)(1 − spec_tint) F_dielectric + metallic · Schlick(base_color) +
+/// (1 − metallic) spec_tint · Schlick(c_tint R0(η)), with c_tint = base_color /
 /// luminance. `None` is a lobe turned off (Mitsuba's `has_metallic`, `has_spec_tint`).
 pub fn principled_fresnel(
     f_dielectric: f32,
