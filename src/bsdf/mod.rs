@@ -1,15 +1,19 @@
 //! Surface scattering: Mitsuba 3's `null`, `diffuse`, `dielectric`, `thindielectric`,
 //! `conductor`, `plastic`, their rough (microfacet) versions `roughdielectric`,
-//! `roughconductor` and `roughplastic`, and `twosided`.
+//! `roughconductor` and `roughplastic`, `principled`, and the BSDFs made of others:
+//! `twosided`, `blendbsdf` and `mask`.
 //!
 //! All directions are in the local shading frame (z = shading normal), `wi` points away
 //! from the surface toward where the path came from, as in Mitsuba.
 
+pub mod blend;
 pub mod conductor;
 pub mod dielectric;
 pub mod fresnel;
 pub mod microfacet;
 pub mod plastic;
+pub mod principled;
+pub mod principled_lobes;
 
 use std::f32::consts::FRAC_1_PI;
 
@@ -19,9 +23,11 @@ use crate::geometry::accel::ShadowPass;
 use crate::sampling::warp::square_to_cosine_hemisphere;
 
 use crate::texture::Texture;
+pub use blend::{Blend, Mask};
 pub use conductor::{Conductor, RoughConductor};
 pub use dielectric::{Dielectric, RoughDielectric, ThinDielectric};
 pub use plastic::{Plastic, RoughPlastic};
+pub use principled::Principled;
 
 #[derive(Clone, Debug)]
 pub enum Bsdf {
@@ -46,6 +52,12 @@ pub enum Bsdf {
     RoughPlastic(RoughPlastic),
     /// Mitsuba's `twosided`: the back side uses `back` (or the same BSDF mirrored).
     TwoSided(Box<[Bsdf; 2]>),
+    /// Mitsuba's `principled` (the Disney BSDF).
+    Principled(Box<Principled>),
+    /// Mitsuba's `blendbsdf`: two BSDFs mixed by a weight.
+    Blend(Box<Blend>),
+    /// Mitsuba's `mask`: a BSDF with an opacity; the rest passes straight through.
+    Mask(Box<Mask>),
 }
 
 /// The outcome of sampling a BSDF.
@@ -74,8 +86,11 @@ impl Bsdf {
             | Bsdf::Plastic(_)
             | Bsdf::RoughDielectric(_)
             | Bsdf::RoughConductor(_)
-            | Bsdf::RoughPlastic(_) => true,
+            | Bsdf::RoughPlastic(_)
+            | Bsdf::Principled(_) => true,
             Bsdf::TwoSided(b) => b[0].is_smooth() || b[1].is_smooth(),
+            Bsdf::Blend(b) => b.bsdfs[0].is_smooth() || b.bsdfs[1].is_smooth(),
+            Bsdf::Mask(m) => m.nested.is_smooth(),
         }
     }
 
@@ -86,6 +101,13 @@ impl Bsdf {
             Bsdf::Plastic(p) => p.diffuse_reflectance.constant().is_none(),
             Bsdf::RoughPlastic(p) => p.diffuse_reflectance.constant().is_none(),
             Bsdf::TwoSided(b) => b[0].is_textured() || b[1].is_textured(),
+            Bsdf::Principled(p) => p.is_textured(),
+            Bsdf::Blend(b) => {
+                b.weight.constant().is_none()
+                    || b.bsdfs[0].is_textured()
+                    || b.bsdfs[1].is_textured()
+            }
+            Bsdf::Mask(m) => m.opacity.constant().is_none() || m.nested.is_textured(),
             _ => false,
         }
     }
@@ -97,35 +119,42 @@ impl Bsdf {
             Bsdf::RoughDielectric(d) => d.distr.alpha_u != d.distr.alpha_v,
             Bsdf::RoughConductor(c) => c.distr.alpha_u != c.distr.alpha_v,
             Bsdf::TwoSided(b) => b[0].is_anisotropic() || b[1].is_anisotropic(),
+            Bsdf::Principled(p) => p.is_anisotropic(),
+            Bsdf::Blend(b) => b.bsdfs[0].is_anisotropic() || b.bsdfs[1].is_anisotropic(),
+            Bsdf::Mask(m) => m.nested.is_anisotropic(),
             _ => false,
         }
     }
 
     /// Whether some light passes straight through (Mitsuba's `BSDFFlags::Null` among the
-    /// BSDF's flags): `null`, `thindielectric`.
+    /// BSDF's flags): `null`, `thindielectric`, `mask`, and what holds one.
     pub fn has_null_component(&self) -> bool {
         match self {
-            Bsdf::Null | Bsdf::ThinDielectric(_) => true,
+            Bsdf::Null | Bsdf::ThinDielectric(_) | Bsdf::Mask(_) => true,
             Bsdf::TwoSided(b) => b[0].has_null_component() || b[1].has_null_component(),
+            Bsdf::Blend(b) => b.bsdfs[0].has_null_component() || b.bsdfs[1].has_null_component(),
             _ => false,
         }
     }
 
     /// What passes straight through toward a direction whose cosine with the shading
     /// normal is `cos_o` (Mitsuba's `eval_null_transmission` at wi = −wo, so
-    /// cos θ_i = −cos_o): 1 for `null`, the pane's transmission for `thindielectric`,
-    /// 0 (blocked) for the others.
-    pub fn null_transmission(&self, cos_o: f32) -> Vec3 {
+    /// cos θ_i = −cos_o), at texture coordinates `uv`: 1 for `null`, the pane's
+    /// transmission for `thindielectric`, 1 − opacity for `mask`, 0 (blocked) for the
+    /// others.
+    pub fn null_transmission(&self, cos_o: f32, uv: Vec2) -> Vec3 {
         match self {
             Bsdf::Null => Vec3::ONE,
             Bsdf::ThinDielectric(t) => t.null_transmission(-cos_o),
             Bsdf::TwoSided(b) => {
                 if -cos_o > 0.0 {
-                    b[0].null_transmission(cos_o)
+                    b[0].null_transmission(cos_o, uv)
                 } else {
-                    b[1].null_transmission(-cos_o)
+                    b[1].null_transmission(-cos_o, uv)
                 }
             }
+            Bsdf::Blend(b) => b.null_transmission(cos_o, uv),
+            Bsdf::Mask(m) => m.null_transmission(cos_o, uv),
             _ => Vec3::ZERO,
         }
     }
@@ -135,8 +164,12 @@ impl Bsdf {
     pub fn shadow_pass(&self) -> ShadowPass {
         match self {
             Bsdf::Null => ShadowPass::Passes,
-            Bsdf::ThinDielectric(_) => ShadowPass::Partial,
+            Bsdf::ThinDielectric(_) | Bsdf::Mask(_) => ShadowPass::Partial,
             Bsdf::TwoSided(b) => match (b[0].shadow_pass(), b[1].shadow_pass()) {
+                (ShadowPass::Blocks, ShadowPass::Blocks) => ShadowPass::Blocks,
+                _ => ShadowPass::Partial,
+            },
+            Bsdf::Blend(b) => match (b.bsdfs[0].shadow_pass(), b.bsdfs[1].shadow_pass()) {
                 (ShadowPass::Blocks, ShadowPass::Blocks) => ShadowPass::Blocks,
                 _ => ShadowPass::Partial,
             },
@@ -162,6 +195,9 @@ impl Bsdf {
             Bsdf::RoughDielectric(d) => d.eval_pdf(wi, wo),
             Bsdf::RoughConductor(c) => c.eval_pdf(wi, wo),
             Bsdf::RoughPlastic(p) => p.eval_pdf(wi, wo, uv),
+            Bsdf::Principled(p) => p.eval_pdf(wi, wo, uv),
+            Bsdf::Blend(b) => b.eval_pdf(wi, wo, uv),
+            Bsdf::Mask(m) => m.eval_pdf(wi, wo, uv),
             Bsdf::TwoSided(b) => {
                 let (front, back) = (&b[0], &b[1]);
                 if wi.z > 0.0 {
@@ -209,6 +245,9 @@ impl Bsdf {
             Bsdf::RoughDielectric(d) => d.sample(wi, s1, s2),
             Bsdf::RoughConductor(c) => c.sample(wi, s2),
             Bsdf::RoughPlastic(p) => p.sample(wi, s1, s2, uv),
+            Bsdf::Principled(p) => p.sample(wi, s1, s2, uv),
+            Bsdf::Blend(b) => b.sample(wi, s1, s2, uv),
+            Bsdf::Mask(m) => m.sample(wi, s1, s2, uv),
             Bsdf::TwoSided(b) => {
                 if wi.z > 0.0 {
                     b[0].sample(wi, s1, s2, uv)

@@ -97,9 +97,9 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         let s1 = rng.next_1d();
         let s2 = rng.next_2d();
         let sampled = bsdf.sample(wi, s1, s2, h.uv);
-        // Any scattering off a surface without a null lobe makes the environment count
-        // (Mitsuba tests the BSDF's flags, so a thindielectric does not).
-        if !bsdf.has_null_component() {
+        // Any scattering but a pass-through (null) sample makes the environment count, as
+        // Mitsuba 3.9.1 tests the sampled lobe (a failed sample is not a null one there).
+        if !sampled.is_some_and(|b| b.null) {
             valid_ray = true;
         }
         let Some(bs) = sampled else { break };

@@ -153,7 +153,7 @@ fn shadow_transmittance_stepwise(
         let info = &scene.shapes[h.shape as usize];
         // Through a null or thin-dielectric surface, by what it lets through; any
         // other surface blocks.
-        tr *= scene.bsdfs[info.bsdf as usize].null_transmission(h.sh_frame.n.dot(d));
+        tr *= scene.bsdfs[info.bsdf as usize].null_transmission(h.sh_frame.n.dot(d), h.uv);
         if tr == Vec3::ZERO {
             return Vec3::ZERO;
         }

@@ -1,6 +1,7 @@
 //! BSDF plugins: Mitsuba's `diffuse`, `dielectric`, `thindielectric`,
 //! `roughdielectric`, `conductor`, `roughconductor`, `plastic`, `roughplastic`, `null`
-//! and `twosided`, with their indices of refraction and microfacet parameters.
+//! `twosided`, `principled`, `blendbsdf` and `mask`, with their indices of refraction
+//! and microfacet parameters.
 
 use glam::Vec3;
 
@@ -9,11 +10,13 @@ use super::spectrum::SpectrumUse;
 use super::{unsupported, Builder};
 use crate::bsdf::dielectric::named_ior;
 use crate::bsdf::microfacet::{Microfacet, MicrofacetType};
+use crate::bsdf::principled::eta_from_specular;
 use crate::bsdf::{
-    Bsdf, Conductor, Dielectric, Plastic, RoughConductor, RoughDielectric, RoughPlastic,
-    ThinDielectric,
+    Blend, Bsdf, Conductor, Dielectric, Mask, Plastic, Principled, RoughConductor, RoughDielectric,
+    RoughPlastic, ThinDielectric,
 };
 use crate::error::{Result, SceneError};
+use crate::texture::Texture;
 use crate::xml::description::{ObjId, ObjectKind, Value};
 
 impl Builder<'_> {
@@ -149,15 +152,139 @@ impl Builder<'_> {
                 p.finish("one or two nested bsdf")?;
                 Bsdf::TwoSided(Box::new([front, back]))
             }
+            "principled" => self.principled(p)?,
+            "blendbsdf" => {
+                if !self.given(&p, "weight") {
+                    return Err(p.error("blendbsdf needs a \"weight\"")
+                        .with_hint("give <float name=\"weight\" value=\"0.5\"/> or a texture named weight: the share of the second nested bsdf"));
+                }
+                let weight = self.reflectance(&p, "weight", Vec3::ZERO)?;
+                let nested = p.children_of(ObjectKind::Bsdf);
+                let [a, b] = nested.as_slice() else {
+                    return Err(p.error(format!(
+                        "blendbsdf needs exactly two nested <bsdf>, not {}",
+                        nested.len()
+                    )));
+                };
+                let bsdfs = [self.bsdf_value(a.object)?, self.bsdf_value(b.object)?];
+                p.finish("weight, two nested bsdf")?;
+                Bsdf::Blend(Box::new(Blend { weight, bsdfs }))
+            }
+            "mask" => {
+                let opacity = self.reflectance(&p, "opacity", Vec3::splat(0.5))?;
+                let nested = p.children_of(ObjectKind::Bsdf);
+                let [one] = nested.as_slice() else {
+                    return Err(p.error(format!(
+                        "mask needs exactly one nested <bsdf>, not {}",
+                        nested.len()
+                    )));
+                };
+                let nested = self.bsdf_value(one.object)?;
+                p.finish("opacity, one nested bsdf")?;
+                Bsdf::Mask(Box::new(Mask { opacity, nested }))
+            }
             _ => {
                 return Err(unsupported(
                     &p,
                     "bsdf",
-                    "null, diffuse, dielectric, thindielectric, conductor, plastic, roughdielectric, roughconductor, roughplastic, twosided",
+                    "null, diffuse, dielectric, thindielectric, conductor, plastic, roughdielectric, roughconductor, roughplastic, twosided, principled, blendbsdf, mask",
                 ))
             }
         };
         Ok(b)
+    }
+}
+
+impl Builder<'_> {
+    /// Whether `name` is given, as a property or a nested object.
+    fn given(&self, p: &Props, name: &str) -> bool {
+        p.has(name)
+            || p.obj
+                .children
+                .iter()
+                .any(|c| c.name.as_deref() == Some(name))
+    }
+
+    /// A scalar parameter of `principled` that switches its lobe's code on (Mitsuba's
+    /// `get_flag`): `None` when not given or given as the float 0. A float, rgb (its
+    /// mean, as `eval_1`) or texture, in [0, 1].
+    fn lobe_param(&self, p: &Props, name: &str) -> Result<Option<Texture>> {
+        if !self.given(p, name) {
+            return Ok(None);
+        }
+        let zero_float = matches!(p.get(name), Some((Value::Float(v), _)) if *v == 0.0);
+        let t = self.scalar_param(p, name, 0.0)?;
+        Ok((!zero_float).then_some(t))
+    }
+
+    /// A scalar parameter read by `eval_1`: a texture (texels in [0, 1]), or a float or
+    /// rgb, finite and nonnegative (Mitsuba bounds none of them; a sheen or clearcoat
+    /// above 1 is a stronger lobe).
+    fn scalar_param(&self, p: &Props, name: &str, default: f32) -> Result<Texture> {
+        if p.named_child_of(name, ObjectKind::Texture)?.is_some() {
+            return self.reflectance(p, name, Vec3::splat(default));
+        }
+        Ok(Texture::Constant(
+            p.color_nonneg(name, Vec3::splat(default))?,
+        ))
+    }
+
+    /// Mitsuba 3's `principled`, every parameter with its name and default.
+    fn principled(&self, p: Props) -> Result<Bsdf> {
+        let spec_trans = self.lobe_param(&p, "spec_trans")?;
+        let eta = match (p.has("eta"), p.has("specular")) {
+            (true, true) => {
+                return Err(p
+                    .error("give either eta or specular, not both")
+                    .with_hint("specular s stands for eta = 2 / (1 − √(0.08 s)) − 1"))
+            }
+            (true, false) => {
+                let eta = p.float("eta", 1.5)? as f32;
+                if !(eta > 0.0 && eta.is_finite()) {
+                    return Err(p.error(format!("eta = {eta}: must be a finite index > 0")));
+                }
+                // η = 1 would make the transmission lobe singular.
+                if spec_trans.is_some() && eta == 1.0 {
+                    1.001
+                } else {
+                    eta
+                }
+            }
+            (false, _) => {
+                let mut specular = p.float_in("specular", 0.5, 0.0, 12.4)? as f32;
+                if spec_trans.is_some() && specular == 0.0 {
+                    specular = 1e-3;
+                }
+                eta_from_specular(specular)
+            }
+        };
+        let rate = |name| -> Result<f32> { Ok(p.float_in(name, 1.0, 0.0, 1e6)? as f32) };
+        let anisotropic = self.lobe_param(&p, "anisotropic")?;
+        // α_u = roughness² / √(1 − 0.9 anisotropic) needs anisotropic ≤ 1/0.9.
+        if let Some(a) = anisotropic.as_ref().and_then(Texture::constant) {
+            if a.max_element() > 1.0 {
+                return Err(p.error(format!("anisotropic {a} must be in [0, 1]")));
+            }
+        }
+        let b = Principled {
+            base_color: self.reflectance(&p, "base_color", Vec3::splat(0.5))?,
+            roughness: self.scalar_param(&p, "roughness", 0.5)?,
+            anisotropic,
+            spec_trans,
+            sheen: self.lobe_param(&p, "sheen")?,
+            sheen_tint: self.lobe_param(&p, "sheen_tint")?,
+            flatness: self.lobe_param(&p, "flatness")?,
+            spec_tint: self.lobe_param(&p, "spec_tint")?,
+            metallic: self.lobe_param(&p, "metallic")?,
+            clearcoat: self.lobe_param(&p, "clearcoat")?,
+            clearcoat_gloss: self.scalar_param(&p, "clearcoat_gloss", 0.0)?,
+            eta,
+            spec_srate: rate("main_specular_sampling_rate")?,
+            clearcoat_srate: rate("clearcoat_sampling_rate")?,
+            diff_refl_srate: rate("diffuse_reflectance_sampling_rate")?,
+        };
+        p.finish("base_color, roughness, anisotropic, metallic, spec_trans, eta or specular, spec_tint, sheen, sheen_tint, flatness, clearcoat, clearcoat_gloss, main_specular_sampling_rate, clearcoat_sampling_rate, diffuse_reflectance_sampling_rate")?;
+        Ok(Bsdf::Principled(Box::new(b)))
     }
 }
 

@@ -47,6 +47,32 @@ impl Texture {
         }
     }
 
+    /// A scalar value at `uv`, as Mitsuba's `Texture::eval_1` gives it to a scalar
+    /// parameter (an opacity, a blend weight, a roughness): the channel mean of a
+    /// constant (`srgb`'s `mean()`), the luminance of a bitmap's RGB, and for a
+    /// checkerboard the *other* colour than `eval` picks (3.9.1's `eval_1` tests
+    /// m.x ≠ m.y for color0 where `eval` tests m.x = m.y).
+    #[inline]
+    pub fn eval_1(&self, uv: Vec2) -> f32 {
+        match self {
+            Texture::Constant(c) => c.element_sum() / 3.0,
+            Texture::Checkerboard {
+                color0,
+                color1,
+                to_uv,
+            } => {
+                let Vec2 { x: u, y: v } = apply_to_uv(to_uv, uv);
+                let c = if (u - u.floor() > 0.5) != (v - v.floor() > 0.5) {
+                    color0
+                } else {
+                    color1
+                };
+                c.element_sum() / 3.0
+            }
+            Texture::Bitmap(b) => luminance(b.eval(uv)),
+        }
+    }
+
     /// The mean over the texture's domain and the channels (Mitsuba's `Texture::mean`;
     /// a checkerboard covers half its domain with each colour).
     pub fn mean(&self) -> f32 {
@@ -64,6 +90,12 @@ impl Texture {
             Texture::Checkerboard { .. } | Texture::Bitmap(_) => None,
         }
     }
+}
+
+/// Mitsuba's `luminance` of linear sRGB (the Y row of the sRGB → XYZ matrix).
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.212_671, 0.715_160, 0.072_169))
 }
 
 /// Tests compare a constant reflectance with a color directly.
@@ -88,5 +120,8 @@ mod tests {
         assert_eq!(t.eval(Vec2::new(0.3, 0.1)), Vec3::ONE); // u' 0.6: high, v' low
         assert_eq!(t.eval(Vec2::new(0.3, 0.3)), Vec3::ZERO);
         assert_eq!(t.eval(Vec2::new(0.6, 0.1)), Vec3::ZERO); // u' 1.2: low again
+                                                             // eval_1 takes the other colour, as Mitsuba 3.9.1's checkerboard does.
+        assert_eq!(t.eval_1(Vec2::new(0.1, 0.1)), 1.0);
+        assert_eq!(t.eval_1(Vec2::new(0.3, 0.1)), 0.0);
     }
 }
