@@ -7,6 +7,7 @@
 
 mod bsdf;
 mod emitter;
+mod instance;
 mod integrator;
 mod medium;
 pub mod props;
@@ -95,7 +96,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         );
     }
     for c in root.children_of(ObjectKind::Shape) {
-        b.shape(c.object)?;
+        b.top_level_shape(c.object)?;
     }
     for c in root.children_of(ObjectKind::Emitter) {
         b.emitter(c.object, None)?;

@@ -3,8 +3,9 @@
 
 use std::path::Path;
 
-use glam::{DVec3, Vec3};
+use glam::{DMat4, DVec3, Vec3};
 
+use super::instance::Placement;
 use super::props::Props;
 use super::{to_mat4, unsupported, Builder};
 use crate::bsdf::Bsdf;
@@ -21,9 +22,11 @@ use crate::xml::resolve::resolve_path;
 const MAX_COORDINATE: f32 = 1e12;
 
 impl Builder<'_> {
-    pub(super) fn shape(&mut self, id: ObjId) -> Result<()> {
+    /// Builds one shape; a shapegroup's shape is built once per instance, `placed` by it.
+    pub(super) fn shape(&mut self, id: ObjId, placed: Option<&Placement>) -> Result<()> {
         let p = Props::new(self.desc, id);
-        let to_world = p.transform("to_world")?;
+        let to_world = placed.map_or(DMat4::IDENTITY, |i| i.to_world) * p.transform("to_world")?;
+        let under = placed.map_or(String::new(), |i| format!(" (placed by the instance at {})", i.loc));
         let flip_normals = p.bool("flip_normals", false)?;
         let geometry = match p.obj.plugin.as_str() {
             "ply" | "obj" | "serialized" => {
@@ -89,7 +92,7 @@ impl Builder<'_> {
                 if (axes[0] - axes[1]).abs() > 1e-6 * axes[0]
                     || (axes[0] - axes[2]).abs() > 1e-6 * axes[0]
                 {
-                    return Err(p.error("to_world scales the sphere non-uniformly; use a ply/obj mesh for an ellipsoid"));
+                    return Err(p.error(format!("to_world scales the sphere non-uniformly{under}; use a ply/obj mesh for an ellipsoid")));
                 }
                 let linear = glam::DMat3::from_mat4(to_world) / axes[0];
                 Geometry::Sphere(Sphere {
@@ -126,6 +129,13 @@ impl Builder<'_> {
         }
         let shape_index = self.geometries.len() as u32;
         let emitter = match p.child_of(ObjectKind::Emitter)? {
+            Some(c) if placed.is_some() => {
+                return Err(SceneError::at(
+                    &c.loc,
+                    format!("{}: an emitter on a shape in a shapegroup: Mitsuba 3 refuses it (\"Instancing of emitters is not supported\")", p.obj.label()),
+                )
+                .with_hint("give each light its own <shape> outside the shapegroup"))
+            }
             Some(c) => Some(self.emitter(c.object, Some(shape_index))?),
             None => None,
         };

@@ -128,6 +128,9 @@ pub struct Object {
     pub props: Vec<Property>,
     pub children: Vec<Child>,
     pub loc: Loc,
+    /// Read from a file older than 2.0 (Mitsuba 0.5/0.6): a property no plugin reads is
+    /// a warning there, as in Mitsuba 0.6, unless `--strict-v3` (see `Props::finish`).
+    pub legacy: bool,
 }
 
 impl Object {
