@@ -158,6 +158,22 @@ impl Builder<'_> {
             Some(c) => Some(self.medium(c.object)?),
             None => None,
         };
+        // Mitsuba binds a nested medium only by the name interior or exterior; any other
+        // (or none) is loaded and bound to nothing.
+        for c in p.children_of(ObjectKind::Medium) {
+            if !matches!(c.name.as_deref(), Some("interior" | "exterior")) {
+                self.medium(c.object)?;
+                let named = c
+                    .name
+                    .as_deref()
+                    .map_or("no name".to_string(), |n| format!("name=\"{n}\""));
+                self.warnings.push(format!(
+                    "{}: {}: a medium with {named} is bound to nothing (as in Mitsuba 3); write name=\"interior\" or name=\"exterior\" to bind it",
+                    c.loc,
+                    p.obj.label()
+                ));
+            }
+        }
         let names = match p.obj.plugin.as_str() {
             "ply" => "filename, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
             "obj" => "filename, to_world, face_normals, flip_normals, flip_tex_coords, bsdf, emitter, interior, exterior",

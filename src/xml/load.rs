@@ -132,6 +132,8 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<SceneDescription> {
         files: loader.files,
         search_path: loader.search_path,
         notes: loader.notes,
+        strict_v3: opts.strict_v3,
+        unread_legacy: Default::default(),
     })
 }
 
