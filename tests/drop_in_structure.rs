@@ -80,7 +80,12 @@ fn fixture(name: &str) -> PathBuf {
 }
 
 /// Writes `text` as `tag/scene.xml` and loads and builds it; the error as text.
-fn build_text(tag: &str, text: &str, strict_v3: bool, overrides: &BuildOverrides) -> Result<Scene, String> {
+fn build_text(
+    tag: &str,
+    text: &str,
+    strict_v3: bool,
+    overrides: &BuildOverrides,
+) -> Result<Scene, String> {
     let path = write(&tmp_dir("drop_in_structure", tag), "scene.xml", text);
     build_file(&path, strict_v3, overrides)
 }
@@ -138,8 +143,12 @@ fn undeclared_and_circular_references_are_errors_at_the_ref() {
         false,
         &Default::default(),
     )
-    .err().expect("an error");
-    assert!(e.contains("scene.xml:4:") && e.contains("\"nowhere\""), "{e}");
+    .err()
+    .expect("an error");
+    assert!(
+        e.contains("scene.xml:4:") && e.contains("\"nowhere\""),
+        "{e}"
+    );
     let e = build_text(
         "cycle",
         &scene3(
@@ -149,7 +158,11 @@ fn undeclared_and_circular_references_are_errors_at_the_ref() {
         &Default::default(),
     )
     .err().expect("an error");
-    assert!(e.contains("circular reference") && (e.contains("scene.xml:4:") || e.contains("scene.xml:6:")), "{e}");
+    assert!(
+        e.contains("circular reference")
+            && (e.contains("scene.xml:4:") || e.contains("scene.xml:6:")),
+        "{e}"
+    );
 }
 
 const GROUP: &str = r#"<shape type="shapegroup" id="g"><shape type="sphere"><float name="radius" value="0.5"/></shape><shape type="cube"/></shape>"#;
@@ -157,7 +170,9 @@ const GROUP: &str = r#"<shape type="shapegroup" id="g"><shape type="sphere"><flo
 /// Each instance adds the group's shapes, placed; the group itself adds none.
 #[test]
 fn each_instance_places_a_copy_of_the_group() {
-    let inst = |t: &str| format!("<shape type=\"instance\"><ref id=\"g\"/><transform name=\"to_world\">{t}</transform></shape>");
+    let inst = |t: &str| {
+        format!("<shape type=\"instance\"><ref id=\"g\"/><transform name=\"to_world\">{t}</transform></shape>")
+    };
     let s = build_text(
         "two_instances",
         &scene3(&format!(
@@ -172,7 +187,13 @@ fn each_instance_places_a_copy_of_the_group() {
     assert_eq!(s.shapes.len(), 4, "two instances of a two-shape group");
     let s = build_text("no_instance", &scene3(GROUP), false, &Default::default()).unwrap();
     assert_eq!(s.shapes.len(), 0, "a shapegroup alone renders nothing");
-    assert!(s.warnings.iter().any(|w| w.contains("no instance refers to it")), "{:?}", s.warnings);
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.contains("no instance refers to it")),
+        "{:?}",
+        s.warnings
+    );
 }
 
 /// What Mitsuba 3 refuses in instancing (an emitter in a group, nested groups, an
@@ -188,8 +209,13 @@ fn instancing_mitsuba_refuses_or_we_cannot_bake_is_refused_with_the_line() {
         ("ellipsoid", &format!("{GROUP}\n<shape type=\"instance\"><ref id=\"g\"/><transform name=\"to_world\"><scale x=\"2\"/></transform></shape>"), "non-uniformly", 3),
     ];
     for (tag, body, what, line) in cases {
-        let e = build_text(tag, &scene3(body), false, &Default::default()).err().expect("an error");
-        assert!(e.contains(what) && e.contains(&format!("scene.xml:{line}:")), "{tag}: {e}");
+        let e = build_text(tag, &scene3(body), false, &Default::default())
+            .err()
+            .expect("an error");
+        assert!(
+            e.contains(what) && e.contains(&format!("scene.xml:{line}:")),
+            "{tag}: {e}"
+        );
     }
 }
 
@@ -197,8 +223,14 @@ fn instancing_mitsuba_refuses_or_we_cannot_bake_is_refused_with_the_line() {
 /// which; a number past the last is an error.
 #[test]
 fn sensor_option_picks_one_of_several_sensors() {
-    let film = |w: u32| format!("<sensor type=\"perspective\"><film type=\"hdrfilm\"><integer name=\"width\" value=\"{w}\"/><integer name=\"height\" value=\"4\"/></film></sensor>");
-    let text = format!("<scene version=\"3.0.0\">\n{}\n{}\n</scene>", film(8), film(12));
+    let film = |w: u32| {
+        format!("<sensor type=\"perspective\"><film type=\"hdrfilm\"><integer name=\"width\" value=\"{w}\"/><integer name=\"height\" value=\"4\"/></film></sensor>")
+    };
+    let text = format!(
+        "<scene version=\"3.0.0\">\n{}\n{}\n</scene>",
+        film(8),
+        film(12)
+    );
     let pick = |n: usize| BuildOverrides {
         sensor: n,
         ..Default::default()
@@ -206,8 +238,16 @@ fn sensor_option_picks_one_of_several_sensors() {
     let s0 = build_text("sensor0", &text, false, &pick(0)).unwrap();
     let s1 = build_text("sensor1", &text, false, &pick(1)).unwrap();
     assert_eq!((s0.shot.film.width, s1.shot.film.width), (8, 12));
-    assert!(s1.warnings.iter().any(|w| w.contains("scene.xml:3:") && w.contains("rendering sensor 1 of the scene's 2")), "{:?}", s1.warnings);
-    let e = build_text("sensor2", &text, false, &pick(2)).err().expect("an error");
+    assert!(
+        s1.warnings.iter().any(
+            |w| w.contains("scene.xml:3:") && w.contains("rendering sensor 1 of the scene's 2")
+        ),
+        "{:?}",
+        s1.warnings
+    );
+    let e = build_text("sensor2", &text, false, &pick(2))
+        .err()
+        .expect("an error");
     assert!(e.contains("--sensor 2") && e.contains("2 <sensor>s"), "{e}");
 }
 
@@ -221,17 +261,35 @@ fn sensor_option_picks_one_of_several_sensors() {
 fn no_sensor_gets_mitsuba_2s_default_camera() {
     let s = build_file(&fixture("no_sensor.xml"), false, &Default::default()).unwrap();
     let c = &s.shot.camera;
-    let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
-    assert!(close(c.near_clip, 0.0386274159) && close(c.far_clip, 19.8627415), "{c:?}");
-    assert!(close(c.tan_half_fov_x, (22.5f32).to_radians().tan()), "{c:?}");
+    let close = |a: f32, b: f64| (a as f64 - b).abs() <= 1e-6 * b.abs().max(1.0);
+    assert!(
+        close(c.near_clip, 0.0386274159) && close(c.far_clip, 19.8627415),
+        "{c:?}"
+    );
+    assert!(close(c.tan_half_fov_x, 22.5f64.to_radians().tan()), "{c:?}");
     let origin = c.to_world.transform_point3(glam::Vec3::ZERO);
-    assert!(close(origin.x, 0.0) && close(origin.y, 0.0) && close(origin.z, -4.61274147), "{origin}");
-    assert_eq!((s.shot.film.width, s.shot.film.height, s.shot.spp), (768, 576, 4));
-    assert!(s.warnings.iter().any(|w| w.contains("no <sensor>") && w.contains("Mitsuba 3 refuses")), "{:?}", s.warnings);
+    assert!(
+        close(origin.x, 0.0) && close(origin.y, 0.0) && close(origin.z, -4.61274147),
+        "{origin}"
+    );
+    assert_eq!(
+        (s.shot.film.width, s.shot.film.height, s.shot.spp),
+        (768, 576, 4)
+    );
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.contains("no <sensor>") && w.contains("Mitsuba 3 refuses")),
+        "{:?}",
+        s.warnings
+    );
     let o = seeded(1, 3);
     let a = render(&build_file(&fixture("no_sensor.xml"), false, &o).unwrap());
     let b = render(&build_file(&fixture("no_sensor_explicit.xml"), false, &o).unwrap());
-    assert!(a == b, "the default camera differs from Mitsuba's numbers written out");
+    assert!(
+        a == b,
+        "the default camera differs from Mitsuba's numbers written out"
+    );
 }
 
 /// Integrators that estimate the image of one of mediareg's are rendered by it with one
@@ -239,19 +297,50 @@ fn no_sensor_gets_mitsuba_2s_default_camera() {
 /// nested integrator; an unknown one is refused with a hint naming --integrator.
 #[test]
 fn integrator_aliases_render_with_ours_and_unknown_ones_name_the_option() {
-    let with = |tag: &str, integrator: &str| build_text(tag, &scene3(integrator), false, &Default::default());
+    let with = |tag: &str, integrator: &str| {
+        build_text(tag, &scene3(integrator), false, &Default::default())
+    };
     let s = with("prb", "<integrator type=\"prb\"/>").unwrap();
-    assert_eq!((s.integrator.kind, s.integrator.max_depth), (IntegratorKind::Path, 6));
-    assert_eq!(s.warnings.iter().filter(|w| w.contains("\"prb\" is rendered by mediareg's path")).count(), 1, "{:?}", s.warnings);
-    let s = with("prbvolpath", "<integrator type=\"prbvolpath\"><integer name=\"max_depth\" value=\"9\"/></integrator>").unwrap();
-    assert_eq!((s.integrator.kind, s.integrator.max_depth), (IntegratorKind::Volpath, 9));
+    assert_eq!(
+        (s.integrator.kind, s.integrator.max_depth),
+        (IntegratorKind::Path, 6)
+    );
+    assert_eq!(
+        s.warnings
+            .iter()
+            .filter(|w| w.contains("\"prb\" is rendered by mediareg's path"))
+            .count(),
+        1,
+        "{:?}",
+        s.warnings
+    );
+    let s = with(
+        "prbvolpath",
+        "<integrator type=\"prbvolpath\"><integer name=\"max_depth\" value=\"9\"/></integrator>",
+    )
+    .unwrap();
+    assert_eq!(
+        (s.integrator.kind, s.integrator.max_depth),
+        (IntegratorKind::Volpath, 9)
+    );
     let s = with("ptracer", "<integrator type=\"ptracer\"><boolean name=\"hide_emitters\" value=\"true\"/><integer name=\"samples_per_pass\" value=\"4\"/></integrator>").unwrap();
     assert!(s.integrator.kind == IntegratorKind::Path && s.integrator.hide_emitters);
     let s = with("aov", "<integrator type=\"aov\"><string name=\"aovs\" value=\"dd.y:depth\"/><integrator type=\"volpath\"/></integrator>").unwrap();
     assert_eq!(s.integrator.kind, IntegratorKind::Volpath);
-    assert!(s.warnings.iter().any(|w| w.contains("AOVs \"dd.y:depth\" are not written")), "{:?}", s.warnings);
-    let e = with("bdpt_v3", "\n<integrator type=\"bdpt\"/>").err().expect("an error");
-    assert!(e.contains("scene.xml:4:") && e.contains("--integrator"), "{e}");
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.contains("AOVs \"dd.y:depth\" are not written")),
+        "{:?}",
+        s.warnings
+    );
+    let e = with("bdpt_v3", "\n<integrator type=\"bdpt\"/>")
+        .err()
+        .expect("an error");
+    assert!(
+        e.contains("scene.xml:4:") && e.contains("--integrator"),
+        "{e}"
+    );
 }
 
 /// `--integrator NAME` replaces the file's integrator, keeping its depth settings; an
@@ -264,10 +353,28 @@ fn integrator_option_overrides_the_file() {
         ..Default::default()
     };
     let s = build_text("override", &text, false, &o("volpath")).unwrap();
-    assert_eq!((s.integrator.kind, s.integrator.max_depth, s.integrator.rr_depth), (IntegratorKind::Volpath, 3, 2));
-    assert!(s.warnings.iter().any(|w| w.contains("--integrator volpath")), "{:?}", s.warnings);
-    let e = build_text("override_bad", &text, false, &o("bdpt")).err().expect("an error");
-    assert!(e.contains("--integrator bdpt") && e.contains("path, volpath, direct"), "{e}");
+    assert_eq!(
+        (
+            s.integrator.kind,
+            s.integrator.max_depth,
+            s.integrator.rr_depth
+        ),
+        (IntegratorKind::Volpath, 3, 2)
+    );
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.contains("--integrator volpath")),
+        "{:?}",
+        s.warnings
+    );
+    let e = build_text("override_bad", &text, false, &o("bdpt"))
+        .err()
+        .expect("an error");
+    assert!(
+        e.contains("--integrator bdpt") && e.contains("path, volpath, direct"),
+        "{e}"
+    );
 }
 
 /// A medium nested in a shape without name="interior"/"exterior" is bound to nothing
@@ -283,7 +390,11 @@ fn unnamed_nested_medium_is_bound_to_nothing_with_a_warning() {
     .unwrap();
     assert_eq!((s.shapes[0].interior, s.shapes[0].exterior), (None, None));
     assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
-    assert!(s.warnings[0].contains("scene.xml:4:") && s.warnings[0].contains("bound to nothing"), "{:?}", s.warnings);
+    assert!(
+        s.warnings[0].contains("scene.xml:4:") && s.warnings[0].contains("bound to nothing"),
+        "{:?}",
+        s.warnings
+    );
 }
 
 /// A property no plugin reads: in a 0.6 file one warning line each and the scene
@@ -297,14 +408,34 @@ fn unread_properties_of_old_files_are_warnings_unless_strict() {
         )
     };
     let s = build_text("v06", &body("0.6.0"), false, &Default::default()).unwrap();
-    let unread: Vec<_> = s.warnings.iter().filter(|w| w.contains("ignored, as Mitsuba 0.6 ignored it")).collect();
+    let unread: Vec<_> = s
+        .warnings
+        .iter()
+        .filter(|w| w.contains("ignored, as Mitsuba 0.6 ignored it"))
+        .collect();
     assert_eq!(unread.len(), 2, "{:?}", s.warnings);
-    assert!(unread[0].contains("scene.xml:3:") && unread[0].contains("\"version\""), "{unread:?}");
-    assert!(unread[1].contains("scene.xml:4:") && unread[1].contains("\"strict_normals\""), "{unread:?}");
-    let e = build_text("v06_strict", &body("0.6.0"), true, &Default::default()).err().expect("an error");
-    assert!(e.contains("scene.xml:3:") && e.contains("unreferenced property \"version\""), "{e}");
-    let e = build_text("v3", &body("3.0.0"), false, &Default::default()).err().expect("an error");
-    assert!(e.contains("scene.xml:3:") && e.contains("unreferenced property \"version\""), "{e}");
+    assert!(
+        unread[0].contains("scene.xml:3:") && unread[0].contains("\"version\""),
+        "{unread:?}"
+    );
+    assert!(
+        unread[1].contains("scene.xml:4:") && unread[1].contains("\"strict_normals\""),
+        "{unread:?}"
+    );
+    let e = build_text("v06_strict", &body("0.6.0"), true, &Default::default())
+        .err()
+        .expect("an error");
+    assert!(
+        e.contains("scene.xml:3:") && e.contains("unreferenced property \"version\""),
+        "{e}"
+    );
+    let e = build_text("v3", &body("3.0.0"), false, &Default::default())
+        .err()
+        .expect("an error");
+    assert!(
+        e.contains("scene.xml:3:") && e.contains("unreferenced property \"version\""),
+        "{e}"
+    );
 }
 
 /// Mitsuba 0.6's `volpath_simple` and `bdpt` in a 0.6 file: rendered by volpath (bdpt by
@@ -321,10 +452,22 @@ fn old_integrators_render_with_ours_in_old_files() {
         .unwrap()
     };
     let s = old("simple", "volpath_simple", "");
-    assert_eq!((s.integrator.kind, s.integrator.max_depth), (IntegratorKind::Volpath, 5));
-    assert_eq!(old("bdpt", "bdpt", "").integrator.kind, IntegratorKind::Path);
+    assert_eq!(
+        (s.integrator.kind, s.integrator.max_depth),
+        (IntegratorKind::Volpath, 5)
+    );
+    assert_eq!(
+        old("bdpt", "bdpt", "").integrator.kind,
+        IntegratorKind::Path
+    );
     let fog = "<shape type=\"sphere\"><medium type=\"homogeneous\" name=\"interior\"/></shape>";
     let s = old("bdpt_media", "bdpt", fog);
     assert_eq!(s.integrator.kind, IntegratorKind::Volpath);
-    assert!(s.warnings.iter().any(|w| w.contains("\"bdpt\" is rendered by mediareg's volpath")), "{:?}", s.warnings);
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.contains("\"bdpt\" is rendered by mediareg's volpath")),
+        "{:?}",
+        s.warnings
+    );
 }

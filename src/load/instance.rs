@@ -138,7 +138,7 @@ impl Builder<'_> {
             }
         };
         let det = to_world.determinant();
-        if !(det > 0.0) {
+        if det <= 0.0 || det.is_nan() {
             return Err(p
                 .error(format!(
                     "the instance's to_world {} (determinant {det:.3}): mediareg bakes instances into copies of the group's shapes, which a mirroring or singular transform would turn inside out",

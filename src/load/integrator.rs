@@ -13,7 +13,6 @@ use crate::xml::description::{ObjId, ObjectKind};
 /// What `--integrator` may name.
 pub const OVERRIDE_NAMES: &str = "path, volpath, direct";
 
-
 /// Mitsuba's `direct`: `shading_samples` (1) sets both counts unless `emitter_samples`
 /// or `bsdf_samples` is given (giving both kinds is an error, as in Mitsuba).
 fn direct_integrator(p: Props) -> Result<IntegratorSettings> {
@@ -83,7 +82,9 @@ impl Builder<'_> {
                     "aov with {} nested integrators: mediareg renders the image of exactly one",
                     nested.len()
                 ))
-                .with_hint("nest one integrator (e.g. <integrator type=\"path\"/>) in the aov integrator"));
+                .with_hint(
+                    "nest one integrator (e.g. <integrator type=\"path\"/>) in the aov integrator",
+                ));
         };
         let settings = self.integrator(inner.object)?;
         self.warnings.push(format!(
@@ -180,7 +181,11 @@ impl Builder<'_> {
         let mut inner = file;
         while let Some(i) = inner {
             let o = self.desc.object(i);
-            match o.children.iter().find(|c| self.desc.object(c.object).kind == ObjectKind::Integrator) {
+            match o
+                .children
+                .iter()
+                .find(|c| self.desc.object(c.object).kind == ObjectKind::Integrator)
+            {
                 Some(c) if matches!(o.plugin.as_str(), "moment" | "aov") => inner = Some(c.object),
                 _ => break,
             }
@@ -224,18 +229,27 @@ impl Builder<'_> {
             }
         };
         let what = match file {
-            Some(f) => format!("{}: the file's integrator \"{}\"", self.desc.object(f).loc, self.desc.object(f).plugin),
+            Some(f) => format!(
+                "{}: the file's integrator \"{}\"",
+                self.desc.object(f).loc,
+                self.desc.object(f).plugin
+            ),
             None => "the default integrator".into(),
         };
-        self.warnings
-            .push(format!("--integrator {name}: rendered with mediareg's {name} instead of {what}"));
+        self.warnings.push(format!(
+            "--integrator {name}: rendered with mediareg's {name} instead of {what}"
+        ));
         Ok(settings)
     }
 }
 
 /// `max_depth` (−1 = unbounded), `rr_depth` (5) and `hide_emitters` (false), as Mitsuba's
 /// `MonteCarloIntegrator` reads them.
-fn depth_settings(p: &Props, kind: IntegratorKind, default_depth: i64) -> Result<IntegratorSettings> {
+fn depth_settings(
+    p: &Props,
+    kind: IntegratorKind,
+    default_depth: i64,
+) -> Result<IntegratorSettings> {
     let max_depth = p.int("max_depth", default_depth)?;
     if max_depth < -1 {
         return Err(p.error(format!(

@@ -181,7 +181,9 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
     }
     // Top-level textures are used where a bsdf refers to them by id.
     root.children_of(ObjectKind::Texture);
-    root.finish("integrator, sensor, shape, emitter, bsdf, medium, phase, texture, sampler, film, rfilter")?;
+    root.finish(
+        "integrator, sensor, shape, emitter, bsdf, medium, phase, texture, sampler, film, rfilter",
+    )?;
     b.warnings.append(&mut desc.unread_legacy.borrow_mut());
 
     Ok(Scene::new(SceneParts {

@@ -6,8 +6,8 @@ use glam::{Mat4, Vec2, Vec3};
 use super::props::Props;
 use super::{to_mat4, unsupported, Builder};
 use crate::error::Result;
-use crate::scene::camera::{fov_x_degrees, PerspectiveCamera};
 use crate::geometry::Bounds;
+use crate::scene::camera::{fov_x_degrees, PerspectiveCamera};
 use crate::scene::film::{Film, Rfilter};
 use crate::xml::description::{ObjId, ObjectKind};
 
@@ -104,7 +104,12 @@ impl Builder<'_> {
             .iter()
             .fold(Bounds::EMPTY, |b, g| b.union(&g.bounds()));
         let (to_world, near_clip, far_clip, placed) = if bounds.is_empty() {
-            (Mat4::IDENTITY, 1e-2, 1e4, "at the origin (the scene has no shapes)".to_string())
+            (
+                Mat4::IDENTITY,
+                1e-2,
+                1e4,
+                "at the origin (the scene has no shapes)".to_string(),
+            )
         } else {
             let center = (bounds.min + bounds.max) * 0.5;
             let extents = bounds.max - bounds.min;

@@ -26,7 +26,9 @@ impl Builder<'_> {
     pub(super) fn shape(&mut self, id: ObjId, placed: Option<&Placement>) -> Result<()> {
         let p = Props::new(self.desc, id);
         let to_world = placed.map_or(DMat4::IDENTITY, |i| i.to_world) * p.transform("to_world")?;
-        let under = placed.map_or(String::new(), |i| format!(" (placed by the instance at {})", i.loc));
+        let under = placed.map_or(String::new(), |i| {
+            format!(" (placed by the instance at {})", i.loc)
+        });
         let flip_normals = p.bool("flip_normals", false)?;
         let geometry = match p.obj.plugin.as_str() {
             "ply" | "obj" | "serialized" => {
@@ -167,11 +169,15 @@ impl Builder<'_> {
                     .name
                     .as_deref()
                     .map_or("no name".to_string(), |n| format!("name=\"{n}\""));
-                self.warnings.push(format!(
+                let line = format!(
                     "{}: {}: a medium with {named} is bound to nothing (as in Mitsuba 3); write name=\"interior\" or name=\"exterior\" to bind it",
                     c.loc,
                     p.obj.label()
-                ));
+                );
+                // Once, though a shapegroup's shape is built once per instance.
+                if !self.warnings.contains(&line) {
+                    self.warnings.push(line);
+                }
             }
         }
         let names = match p.obj.plugin.as_str() {

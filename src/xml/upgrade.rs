@@ -26,11 +26,7 @@ use crate::error::{err_at, Result, SceneError};
 /// Upgrades `obj` (just read from a file older than 2.0): Mitsuba 3's own rules, then the
 /// 0.6 meanings (a line each in `notes`, or an error when `strict`); shapes get
 /// [`index_matched_boundary`] once references are resolved.
-pub fn from_v1(
-    obj: &mut Object,
-    notes: &mut Vec<String>,
-    strict: bool,
-) -> Result<()> {
+pub fn from_v1(obj: &mut Object, notes: &mut Vec<String>, strict: bool) -> Result<()> {
     // ---- Mitsuba 3's upgrade ----
     if obj.kind == ObjectKind::Bsdf && obj.plugin == "diffuse" {
         for p in obj
@@ -235,7 +231,10 @@ pub fn index_matched_boundary(
 ) -> Result<()> {
     let obj = &objects[shape];
     let kind_of = |c: &Child| objects[c.object].kind;
-    let has_medium = obj.children.iter().any(|c| kind_of(c) == ObjectKind::Medium);
+    let has_medium = obj
+        .children
+        .iter()
+        .any(|c| kind_of(c) == ObjectKind::Medium);
     let has_bsdf = obj.children.iter().any(|c| kind_of(c) == ObjectKind::Bsdf);
     if !has_medium || has_bsdf {
         return Ok(());
