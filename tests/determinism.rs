@@ -22,6 +22,7 @@ fn render_window(name: &str, threads: usize, seed: u64, crop: Option<[usize; 4]>
             spp: Some(16),
             seed: Some(seed),
             crop,
+            ..Default::default()
         },
     )
     .unwrap_or_else(|e| panic!("{e}"));

@@ -241,6 +241,7 @@ fn exercise_scene(path: &Path) -> Result<(), TestCaseError> {
             spp: Some(1),
             seed: Some(1),
             crop: None,
+            ..Default::default()
         },
     ) {
         Ok(s) => s,

@@ -116,6 +116,7 @@ fn a_loaded_scene_rebuilt_from_its_parts_renders_the_same() {
         spp: Some(4),
         seed: Some(3),
         crop: None,
+        ..Default::default()
     };
     let render_it = |s: &Scene| render(s, &s.shot, &RenderOptions::default()).image.pixels;
     let loaded = mediareg::load_scene(&path, &Default::default(), &overrides).unwrap();

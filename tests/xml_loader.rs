@@ -384,6 +384,7 @@ fn sampler_and_integrator() {
             spp: Some(2),
             seed: Some(9),
             crop: None,
+            ..Default::default()
         },
     )
     .unwrap();

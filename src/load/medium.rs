@@ -59,24 +59,7 @@ impl Builder<'_> {
             .with_hint("remove has_spectral_extinction (default true), or give a grey sigma_t"));
         }
         let phase = match p.child_of(ObjectKind::Phase)? {
-            Some(c) => {
-                let q = Props::new(self.desc, c.object);
-                let ph = match q.obj.plugin.as_str() {
-                    "isotropic" => Phase::Isotropic,
-                    "hg" => {
-                        let g = q.float("g", 0.8)?;
-                        if !(g > -1.0 && g < 1.0) {
-                            return Err(
-                                q.error(format!("g = {g}: the asymmetry must lie in (-1, 1)"))
-                            );
-                        }
-                        Phase::HenyeyGreenstein { g: g as f32 }
-                    }
-                    _ => return Err(unsupported(&q, "phase", "isotropic, hg")),
-                };
-                q.finish("g (hg)")?;
-                ph
-            }
+            Some(c) => self.phase(c.object)?,
             None => Phase::Isotropic,
         };
         let medium_id = p.obj.id.clone();
@@ -91,5 +74,24 @@ impl Builder<'_> {
         let i = self.media.len() as u32 - 1;
         self.medium_ids.insert(id, i);
         Ok(i)
+    }
+
+    /// Mitsuba's `isotropic` and `hg` phase functions (nested in a medium, or declared
+    /// at the top level with an `id` and referred to).
+    pub(super) fn phase(&self, id: ObjId) -> Result<Phase> {
+        let q = Props::new(self.desc, id);
+        let ph = match q.obj.plugin.as_str() {
+            "isotropic" => Phase::Isotropic,
+            "hg" => {
+                let g = q.float("g", 0.8)?;
+                if !(g > -1.0 && g < 1.0) {
+                    return Err(q.error(format!("g = {g}: the asymmetry must lie in (-1, 1)")));
+                }
+                Phase::HenyeyGreenstein { g: g as f32 }
+            }
+            _ => return Err(unsupported(&q, "phase", "isotropic, hg")),
+        };
+        q.finish("g (hg)")?;
+        Ok(ph)
     }
 }

@@ -7,6 +7,7 @@
 
 mod bsdf;
 mod emitter;
+mod instance;
 mod integrator;
 mod medium;
 pub mod props;
@@ -22,7 +23,7 @@ use glam::{DMat4, Mat4};
 
 use crate::bsdf::Bsdf;
 use crate::emitter::Emitter;
-use crate::error::{err_at, Result, SceneError};
+use crate::error::{Result, SceneError};
 use crate::geometry::shape::Geometry;
 use crate::medium::HomogeneousMedium;
 use crate::scene::shot::Shot;
@@ -56,6 +57,12 @@ pub struct BuildOverrides {
     /// A crop window `[x, y, width, height]` of the full film, replacing the file's
     /// (Mitsuba's `crop_offset_x/y`, `crop_width/height`).
     pub crop: Option<[usize; 4]>,
+    /// Which of the file's `<sensor>`s to render, in file order (`--sensor N`; Mitsuba's
+    /// `mitsuba` renders sensor 0).
+    pub sensor: usize,
+    /// One of mediareg's integrators (`--integrator NAME`: path, volpath, direct) in place
+    /// of the file's.
+    pub integrator: Option<String>,
 }
 
 /// Loads and builds a scene.
@@ -79,9 +86,11 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
     };
     let root = Props::new(desc, desc.root);
 
-    let integrator = match root.child_of(ObjectKind::Integrator)? {
-        Some(c) => b.integrator(c.object)?,
-        None => IntegratorSettings {
+    let file_integrator = root.child_of(ObjectKind::Integrator)?;
+    let integrator = match (&overrides.integrator, file_integrator) {
+        (Some(name), c) => b.override_integrator(name, c.map(|c| c.object))?,
+        (None, Some(c)) => b.integrator(c.object)?,
+        (None, None) => IntegratorSettings {
             kind: IntegratorKind::Path,
             max_depth: u32::MAX,
             rr_depth: 5,
@@ -95,30 +104,67 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         );
     }
     for c in root.children_of(ObjectKind::Shape) {
-        b.shape(c.object)?;
+        b.top_level_shape(c.object)?;
     }
     for c in root.children_of(ObjectKind::Emitter) {
-        b.emitter(c.object, None)?;
+        // An area light declared here with an id belongs to the shapes that refer to it.
+        if !(desc.object(c.object).plugin == "area" && is_referenced(desc, c.object)) {
+            b.emitter(c.object, None)?;
+        }
     }
-    // Top-level BSDFs and media are declarations for <ref>: build them so they are
-    // validated even when unused.
+    // Top-level BSDFs, media and phase functions are declarations for <ref> (before or
+    // after the <ref>): build them so they are validated even when unused.
     for c in root.children_of(ObjectKind::Bsdf) {
         b.bsdf(c.object)?;
     }
     for c in root.children_of(ObjectKind::Medium) {
         b.medium(c.object)?;
     }
+    for c in root.children_of(ObjectKind::Phase) {
+        b.phase(c.object)?;
+    }
+    // So are a sensor's parts (Mitsuba builds every top-level object).
+    for c in root.children_of(ObjectKind::Sampler) {
+        b.sampler(c.object)?;
+    }
+    for c in root.children_of(ObjectKind::Film) {
+        b.film(c.object)?;
+    }
+    for c in root.children_of(ObjectKind::Rfilter) {
+        b.rfilter(c.object)?;
+    }
     let sensors = root.children_of(ObjectKind::Sensor);
-    let sensor = match sensors.as_slice() {
-        [] => {
-            return Err(root
-                .error("the scene has no <sensor>")
-                .with_hint("add <sensor type=\"perspective\"> with a <film type=\"hdrfilm\">"))
+    if overrides.sensor > 0 && overrides.sensor >= sensors.len() {
+        return Err(root
+            .error(format!(
+                "--sensor {}: the scene has {} <sensor>s",
+                overrides.sensor,
+                sensors.len()
+            ))
+            .with_hint("sensors are numbered from 0 in file order"));
+    }
+    let (camera, camera_medium, mut film, spp, seed) = if sensors.is_empty() {
+        let (camera, film, spp, seed) = b.default_sensor();
+        (camera, None, film, spp, seed)
+    } else {
+        // Mitsuba builds every sensor: check them all, render the chosen one.
+        let mut chosen = None;
+        for (i, s) in sensors.iter().enumerate() {
+            let built = b.sensor(s.object)?;
+            if i == overrides.sensor {
+                chosen = Some(built);
+            }
         }
-        [s] => s.object,
-        [_, second, ..] => return err_at(&second.loc, "only one <sensor> per scene is supported"),
+        if sensors.len() > 1 {
+            b.warnings.push(format!(
+                "{}: rendering sensor {} of the scene's {} (--sensor N picks another, 0 = the first in the file)",
+                sensors[overrides.sensor].loc,
+                overrides.sensor,
+                sensors.len()
+            ));
+        }
+        chosen.expect("the chosen sensor is in range")
     };
-    let (camera, camera_medium, mut film, spp, seed) = b.sensor(sensor)?;
     if let Some([x, y, w, h]) = overrides.crop {
         if w == 0 || h == 0 || x + w > film.width || y + h > film.height {
             return Err(SceneError::new(
@@ -135,7 +181,10 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
     }
     // Top-level textures are used where a bsdf refers to them by id.
     root.children_of(ObjectKind::Texture);
-    root.finish("integrator, sensor, shape, emitter, bsdf, medium, texture")?;
+    root.finish(
+        "integrator, sensor, shape, emitter, bsdf, medium, phase, texture, sampler, film, rfilter",
+    )?;
+    b.warnings.append(&mut desc.unread_legacy.borrow_mut());
 
     Ok(Scene::new(SceneParts {
         geometries: b.geometries,
@@ -162,6 +211,14 @@ fn unsupported(p: &Props, kind: &str, supported: &str) -> SceneError {
         format!("unsupported {kind} plugin \"{}\"", p.obj.plugin),
     )
     .with_hint(format!("mediareg supports {kind} plugins: {supported}"))
+}
+
+/// Whether any object other than the root holds `id` (nested or by `<ref>`).
+fn is_referenced(desc: &SceneDescription, id: ObjId) -> bool {
+    desc.objects
+        .iter()
+        .enumerate()
+        .any(|(i, o)| i != desc.root && o.children.iter().any(|c| c.object == id))
 }
 
 fn to_mat4(m: DMat4) -> Mat4 {

@@ -270,10 +270,23 @@ impl<'a> Props<'a> {
     }
 
     /// Fails on any property or nested object the plugin did not ask for, as Mitsuba 3
-    /// does ("Unreferenced property").
+    /// does ("Unreferenced property"). A property of an object from a file older than 2.0
+    /// is noted instead (Mitsuba 0.6 logged it and went on), unless `--strict-v3`.
     pub fn finish(self, supported: &str) -> Result<()> {
         for (p, used) in self.obj.props.iter().zip(self.used_props.borrow().iter()) {
-            if !used {
+            if !used && self.obj.legacy && !self.desc.strict_v3 {
+                let line = format!(
+                    "{}: property \"{}\" of {} is not read by mediareg (nor by Mitsuba 3): ignored, as Mitsuba 0.6 ignored it (--strict-v3 makes it an error); {} reads: {supported}",
+                    p.loc,
+                    p.name,
+                    self.obj.label(),
+                    self.obj.plugin
+                );
+                let mut unread = self.desc.unread_legacy.borrow_mut();
+                if !unread.contains(&line) {
+                    unread.push(line);
+                }
+            } else if !used {
                 return Err(SceneError::at(
                     &p.loc,
                     format!(

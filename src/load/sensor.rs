@@ -1,11 +1,12 @@
 //! The sensor and what it holds: Mitsuba's `perspective` sensor, `hdrfilm` film,
 //! reconstruction filters (`box`, `tent`, `gaussian`) and the `independent` sampler.
 
-use glam::Vec2;
+use glam::{Mat4, Vec2, Vec3};
 
 use super::props::Props;
 use super::{to_mat4, unsupported, Builder};
 use crate::error::Result;
+use crate::geometry::Bounds;
 use crate::scene::camera::{fov_x_degrees, PerspectiveCamera};
 use crate::scene::film::{Film, Rfilter};
 use crate::xml::description::{ObjId, ObjectKind};
@@ -21,13 +22,7 @@ impl Builder<'_> {
         }
         let film = match p.child_of(ObjectKind::Film)? {
             Some(c) => self.film(c.object)?,
-            None => Film {
-                width: 768,
-                height: 576,
-                crop_offset: (0, 0),
-                crop_size: (768, 576),
-                rfilter: Rfilter::Gaussian { stddev: 0.5 },
-            },
+            None => default_film(),
         };
         let (spp, seed) = match p.child_of(ObjectKind::Sampler)? {
             Some(c) => self.sampler(c.object)?,
@@ -92,6 +87,56 @@ impl Builder<'_> {
             film_size: Vec2::new(film.width as f32, film.height as f32),
         };
         Ok((camera, medium, film, spp, seed))
+    }
+
+    /// A scene without a sensor: the perspective camera Mitsuba 2 (and Mitsuba 3 before
+    /// 3.0.0, `Scene::Scene` in `src/render/scene.cpp` until commit 1279b88) added, with a
+    /// warning: fov 45° (along x), looking along +z from below the scene's bounding box
+    /// at the distance where its largest extent fills the fov, centred on the box in x
+    /// and y; near clip distance/100, far clip 5·extent + distance; the default hdrfilm
+    /// (768 × 576, gaussian) and independent sampler (4 spp). Without shapes, at the
+    /// origin with the default clip planes. Computed in single precision, as Mitsuba's.
+    /// Mitsuba 3.0 and later refuse such a file ("No sensor specified").
+    pub(super) fn default_sensor(&mut self) -> (PerspectiveCamera, Film, u32, u64) {
+        let film = default_film();
+        let bounds = self
+            .geometries
+            .iter()
+            .fold(Bounds::EMPTY, |b, g| b.union(&g.bounds()));
+        let (to_world, near_clip, far_clip, placed) = if bounds.is_empty() {
+            (
+                Mat4::IDENTITY,
+                1e-2,
+                1e4,
+                "at the origin (the scene has no shapes)".to_string(),
+            )
+        } else {
+            let center = (bounds.min + bounds.max) * 0.5;
+            let extents = bounds.max - bounds.min;
+            let max_extent = extents.max_element();
+            let distance = max_extent / (2.0 * (45f32 * 0.5 * std::f32::consts::PI / 180.0).tan());
+            let origin = Vec3::new(center.x, center.y, bounds.min.z - distance);
+            (
+                Mat4::from_translation(origin),
+                distance / 100.0,
+                max_extent * 5.0 + distance,
+                format!("at {origin}, looking along +z at the scene's bounding box"),
+            )
+        };
+        self.warnings.push(format!(
+            "the scene has no <sensor>: rendering from the camera Mitsuba 2 added (perspective, fov 45, {placed}, 768 x 576 film, 4 spp); Mitsuba 3 refuses a file without a sensor"
+        ));
+        let aspect = film.width as f32 / film.height as f32;
+        let camera = PerspectiveCamera {
+            to_world,
+            tan_half_fov_x: (0.5 * 45f64).to_radians().tan() as f32,
+            aspect,
+            near_clip,
+            far_clip,
+            principal_point_offset: Vec2::ZERO,
+            film_size: Vec2::new(film.width as f32, film.height as f32),
+        };
+        (camera, film, 4, 0)
     }
 
     pub(super) fn film(&self, id: ObjId) -> Result<Film> {
@@ -197,5 +242,16 @@ impl Builder<'_> {
         }
         p.finish("sample_count, seed")?;
         Ok((spp as u32, seed as u64))
+    }
+}
+
+/// Mitsuba's default `hdrfilm`: 768 × 576 with a gaussian filter.
+fn default_film() -> Film {
+    Film {
+        width: 768,
+        height: 576,
+        crop_offset: (0, 0),
+        crop_size: (768, 576),
+        rfilter: Rfilter::Gaussian { stddev: 0.5 },
     }
 }

@@ -3,8 +3,9 @@
 
 use std::path::Path;
 
-use glam::{DVec3, Vec3};
+use glam::{DMat4, DVec3, Vec3};
 
+use super::instance::Placement;
 use super::props::Props;
 use super::{to_mat4, unsupported, Builder};
 use crate::bsdf::Bsdf;
@@ -21,9 +22,13 @@ use crate::xml::resolve::resolve_path;
 const MAX_COORDINATE: f32 = 1e12;
 
 impl Builder<'_> {
-    pub(super) fn shape(&mut self, id: ObjId) -> Result<()> {
+    /// Builds one shape; a shapegroup's shape is built once per instance, `placed` by it.
+    pub(super) fn shape(&mut self, id: ObjId, placed: Option<&Placement>) -> Result<()> {
         let p = Props::new(self.desc, id);
-        let to_world = p.transform("to_world")?;
+        let to_world = placed.map_or(DMat4::IDENTITY, |i| i.to_world) * p.transform("to_world")?;
+        let under = placed.map_or(String::new(), |i| {
+            format!(" (placed by the instance at {})", i.loc)
+        });
         let flip_normals = p.bool("flip_normals", false)?;
         let geometry = match p.obj.plugin.as_str() {
             "ply" | "obj" | "serialized" => {
@@ -89,7 +94,7 @@ impl Builder<'_> {
                 if (axes[0] - axes[1]).abs() > 1e-6 * axes[0]
                     || (axes[0] - axes[2]).abs() > 1e-6 * axes[0]
                 {
-                    return Err(p.error("to_world scales the sphere non-uniformly; use a ply/obj mesh for an ellipsoid"));
+                    return Err(p.error(format!("to_world scales the sphere non-uniformly{under}; use a ply/obj mesh for an ellipsoid")));
                 }
                 let linear = glam::DMat3::from_mat4(to_world) / axes[0];
                 Geometry::Sphere(Sphere {
@@ -126,6 +131,13 @@ impl Builder<'_> {
         }
         let shape_index = self.geometries.len() as u32;
         let emitter = match p.child_of(ObjectKind::Emitter)? {
+            Some(c) if placed.is_some() => {
+                return Err(SceneError::at(
+                    &c.loc,
+                    format!("{}: an emitter on a shape in a shapegroup: Mitsuba 3 refuses it (\"Instancing of emitters is not supported\")", p.obj.label()),
+                )
+                .with_hint("give each light its own <shape> outside the shapegroup"))
+            }
             Some(c) => Some(self.emitter(c.object, Some(shape_index))?),
             None => None,
         };
@@ -148,6 +160,26 @@ impl Builder<'_> {
             Some(c) => Some(self.medium(c.object)?),
             None => None,
         };
+        // Mitsuba binds a nested medium only by the name interior or exterior; any other
+        // (or none) is loaded and bound to nothing.
+        for c in p.children_of(ObjectKind::Medium) {
+            if !matches!(c.name.as_deref(), Some("interior" | "exterior")) {
+                self.medium(c.object)?;
+                let named = c
+                    .name
+                    .as_deref()
+                    .map_or("no name".to_string(), |n| format!("name=\"{n}\""));
+                let line = format!(
+                    "{}: {}: a medium with {named} is bound to nothing (as in Mitsuba 3); write name=\"interior\" or name=\"exterior\" to bind it",
+                    c.loc,
+                    p.obj.label()
+                );
+                // Once, though a shapegroup's shape is built once per instance.
+                if !self.warnings.contains(&line) {
+                    self.warnings.push(line);
+                }
+            }
+        }
         let names = match p.obj.plugin.as_str() {
             "ply" => "filename, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
             "obj" => "filename, to_world, face_normals, flip_normals, flip_tex_coords, bsdf, emitter, interior, exterior",

@@ -128,6 +128,9 @@ pub struct Object {
     pub props: Vec<Property>,
     pub children: Vec<Child>,
     pub loc: Loc,
+    /// Read from a file older than 2.0 (Mitsuba 0.5/0.6): a property no plugin reads is
+    /// a warning there, as in Mitsuba 0.6, unless `--strict-v3` (see `Props::finish`).
+    pub legacy: bool,
 }
 
 impl Object {
@@ -152,6 +155,12 @@ pub struct SceneDescription {
     pub search_path: Vec<std::path::PathBuf>,
     /// One line per Mitsuba 0.6 reading the loader made (`upgrade`), to be printed.
     pub notes: Vec<String>,
+    /// `--strict-v3`: read files older than 2.0 as Mitsuba 3 does.
+    pub strict_v3: bool,
+    /// Properties of objects from files older than 2.0 that their plugin did not read:
+    /// Mitsuba 0.6 logged each and went on, and so does the build (a line each, taken by
+    /// `build_scene`); with `strict_v3` each is an error, as in Mitsuba 3.
+    pub unread_legacy: std::cell::RefCell<Vec<String>>,
 }
 
 impl SceneDescription {

@@ -9,6 +9,7 @@ use glam::{DMat4, DVec3};
 
 use super::description::{Child, ObjId, Object, ObjectKind, Property, SceneDescription, Value};
 use super::element::{read_file, Element};
+use super::refs::{Pending, UNRESOLVED};
 use super::resolve::resolve_path;
 use super::transform;
 use crate::error::{err_at, Loc, Result, SceneError};
@@ -39,6 +40,10 @@ struct Loader {
     /// One line per 0.6 reading made (see `upgrade`).
     notes: Vec<String>,
     strict_v3: bool,
+    /// `<ref>`s met before their target (see `refs`).
+    pending: Vec<Pending>,
+    /// Shapes read from files older than 2.0 (see `upgrade::index_matched_boundary`).
+    v1_shapes: Vec<ObjId>,
 }
 
 /// How many files deep `<include>`s may chain: each level's elements nest inside the
@@ -74,6 +79,8 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<SceneDescription> {
         search_path,
         notes: Vec::new(),
         strict_v3: opts.strict_v3,
+        pending: Vec::new(),
+        v1_shapes: Vec::new(),
     };
     for (name, value) in &opts.params {
         loader.params.insert(
@@ -91,6 +98,15 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<SceneDescription> {
     loader.include_stack.push(canonical(path));
     let version = loader.root_version(&root_el)?;
     let root = loader.object(&root_el, ObjectKind::Scene, version)?;
+    super::refs::resolve(&mut loader.objects, &loader.ids, &loader.pending)?;
+    for shape in std::mem::take(&mut loader.v1_shapes) {
+        super::upgrade::index_matched_boundary(
+            shape,
+            &mut loader.objects,
+            &mut loader.notes,
+            loader.strict_v3,
+        )?;
+    }
 
     // Mitsuba 3 rejects parameters passed by the caller that the scene never uses.
     let mut unused: Vec<&String> = loader
@@ -116,6 +132,8 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<SceneDescription> {
         files: loader.files,
         search_path: loader.search_path,
         notes: loader.notes,
+        strict_v3: opts.strict_v3,
+        unread_legacy: Default::default(),
     })
 }
 
@@ -250,12 +268,16 @@ impl Loader {
             props: Vec::new(),
             children: Vec::new(),
             loc: el.loc.clone(),
+            legacy: version < Version(2, 0, 0),
         };
         self.children(&el.children, &mut obj, version)?;
-        if version < Version(2, 0, 0) {
-            super::upgrade::from_v1(&mut obj, &mut self.objects, &mut self.notes, self.strict_v3)?;
+        if obj.legacy {
+            super::upgrade::from_v1(&mut obj, &mut self.notes, self.strict_v3)?;
         }
         let oid = self.objects.len();
+        if obj.legacy && kind == ObjectKind::Shape {
+            self.v1_shapes.push(oid);
+        }
         self.objects.push(obj);
         if let Some(id) = id {
             if let Some(&prev) = self.ids.get(&id) {
@@ -304,9 +326,16 @@ impl Loader {
                 let attrs = self.attrs(el)?;
                 check_attrs(el, &attrs, &["id", "name"])?;
                 let id = required(el, &attrs, "id")?;
-                let Some(&target) = self.ids.get(&id) else {
-                    return Err(SceneError::at(&el.loc, format!("<ref id=\"{id}\"> refers to an unknown id"))
-                        .with_hint("an object must be declared with id=\"...\" before it is referenced"));
+                // A target declared later is filled in once the file is read (`refs`).
+                let target = match self.ids.get(&id) {
+                    Some(&t) => t,
+                    None => {
+                        self.pending.push(Pending {
+                            id,
+                            loc: el.loc.clone(),
+                        });
+                        UNRESOLVED + self.pending.len() - 1
+                    }
                 };
                 let name = attrs.iter().find(|(k, _)| k == "name").map(|(_, v)| v.clone());
                 obj.children.push(Child {

@@ -24,14 +24,9 @@ use super::description::{Child, ObjId, Object, ObjectKind, Property, Value};
 use crate::error::{err_at, Result, SceneError};
 
 /// Upgrades `obj` (just read from a file older than 2.0): Mitsuba 3's own rules, then the
-/// 0.6 meanings (a line each in `notes`, or an error when `strict`). New objects (a
-/// shape's null bsdf) are added to `objects`.
-pub fn from_v1(
-    obj: &mut Object,
-    objects: &mut Vec<Object>,
-    notes: &mut Vec<String>,
-    strict: bool,
-) -> Result<()> {
+/// 0.6 meanings (a line each in `notes`, or an error when `strict`); shapes get
+/// [`index_matched_boundary`] once references are resolved.
+pub fn from_v1(obj: &mut Object, notes: &mut Vec<String>, strict: bool) -> Result<()> {
     // ---- Mitsuba 3's upgrade ----
     if obj.kind == ObjectKind::Bsdf && obj.plugin == "diffuse" {
         for p in obj
@@ -50,22 +45,7 @@ pub fn from_v1(
     uv_offsets_to_transform(obj)?;
 
     // ---- 0.6 meanings Mitsuba 3 does not carry over ----
-    let mut convert = |obj: &Object, what: String| -> Result<()> {
-        if strict {
-            return Err(SceneError::at(
-                &obj.loc,
-                format!(
-                    "{}: a Mitsuba 0.6 form that Mitsuba 3 does not read (--strict-v3): {what}",
-                    obj.label()
-                ),
-            )
-            .with_hint(
-                "without --strict-v3 mediareg reads it so; or write it in Mitsuba 3's form",
-            ));
-        }
-        notes.push(format!("{}: {}: 0.6 file: {what}", obj.loc, obj.label()));
-        Ok(())
-    };
+    let mut convert = |obj: &Object, what: String| reading(obj, what, notes, strict);
     if obj.kind == ObjectKind::Medium && obj.plugin == "homogeneous" {
         if let Some(p) = obj.props.iter().find(|p| p.name == "material") {
             return Err(SceneError::at(
@@ -94,34 +74,6 @@ pub fn from_v1(
         {
             let what = sigma_s_a_to_t_albedo(obj)?;
             convert(obj, what)?;
-        }
-    }
-    if obj.kind == ObjectKind::Shape {
-        let kind_of = |c: &Child| objects[c.object].kind;
-        let has_medium = obj
-            .children
-            .iter()
-            .any(|c| kind_of(c) == ObjectKind::Medium);
-        let has_bsdf = obj.children.iter().any(|c| kind_of(c) == ObjectKind::Bsdf);
-        if has_medium && !has_bsdf {
-            let id: ObjId = objects.len();
-            objects.push(Object {
-                kind: ObjectKind::Bsdf,
-                plugin: "null".into(),
-                id: None,
-                props: Vec::new(),
-                children: Vec::new(),
-                loc: obj.loc.clone(),
-            });
-            obj.children.push(Child {
-                name: None,
-                object: id,
-                loc: obj.loc.clone(),
-            });
-            convert(
-                obj,
-                "a medium boundary with no bsdf read as index-matched (a null bsdf); Mitsuba 3 would make it diffuse".into(),
-            )?;
         }
     }
     Ok(())
@@ -250,4 +202,63 @@ fn sigma_s_a_to_t_albedo(obj: &mut Object) -> Result<String> {
         loc,
     });
     Ok(note)
+}
+
+/// One 0.6 reading: a line in `notes`, or with `strict` (`--strict-v3`) an error.
+fn reading(obj: &Object, what: String, notes: &mut Vec<String>, strict: bool) -> Result<()> {
+    if strict {
+        return Err(SceneError::at(
+            &obj.loc,
+            format!(
+                "{}: a Mitsuba 0.6 form that Mitsuba 3 does not read (--strict-v3): {what}",
+                obj.label()
+            ),
+        )
+        .with_hint("without --strict-v3 mediareg reads it so; or write it in Mitsuba 3's form"));
+    }
+    notes.push(format!("{}: {}: 0.6 file: {what}", obj.loc, obj.label()));
+    Ok(())
+}
+
+/// A shape of a file older than 2.0 with a medium and no bsdf was index-matched in 0.6
+/// (light passed straight through): it gets a `null` bsdf. Run once the file's
+/// references are resolved (a `<ref>` may name a medium or bsdf declared later).
+pub fn index_matched_boundary(
+    shape: ObjId,
+    objects: &mut Vec<Object>,
+    notes: &mut Vec<String>,
+    strict: bool,
+) -> Result<()> {
+    let obj = &objects[shape];
+    let kind_of = |c: &Child| objects[c.object].kind;
+    let has_medium = obj
+        .children
+        .iter()
+        .any(|c| kind_of(c) == ObjectKind::Medium);
+    let has_bsdf = obj.children.iter().any(|c| kind_of(c) == ObjectKind::Bsdf);
+    if !has_medium || has_bsdf {
+        return Ok(());
+    }
+    let id: ObjId = objects.len();
+    let loc = obj.loc.clone();
+    objects.push(Object {
+        kind: ObjectKind::Bsdf,
+        plugin: "null".into(),
+        id: None,
+        props: Vec::new(),
+        children: Vec::new(),
+        loc: loc.clone(),
+        legacy: true,
+    });
+    objects[shape].children.push(Child {
+        name: None,
+        object: id,
+        loc,
+    });
+    reading(
+        &objects[shape],
+        "a medium boundary with no bsdf read as index-matched (a null bsdf); Mitsuba 3 would make it diffuse".into(),
+        notes,
+        strict,
+    )
 }

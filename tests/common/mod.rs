@@ -63,6 +63,7 @@ pub fn load_seeded_crop(
             spp: Some(spp),
             seed: Some(seed),
             crop,
+            ..Default::default()
         },
     )
     .unwrap_or_else(|e| panic!("{e}"))

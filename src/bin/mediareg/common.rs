@@ -42,6 +42,14 @@ pub struct SceneArgs {
     /// medium boundaries without a bsdf)
     #[arg(long)]
     pub strict_v3: bool,
+    /// Which <sensor> to render when the scene has several: 0 is the first in the file
+    /// (as Mitsuba's `mitsuba` renders).
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub sensor: usize,
+    /// Render with one of mediareg's integrators (path, volpath, direct) instead of the
+    /// file's; the file's max_depth, rr_depth and hide_emitters are kept.
+    #[arg(long, value_name = "NAME")]
+    pub integrator: Option<String>,
     /// Number of render threads (default: all cores).
     #[arg(short = 't', long = "threads")]
     pub threads: Option<usize>,
@@ -165,6 +173,8 @@ pub fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
         spp: args.spp,
         seed: args.seed,
         crop: args.crop,
+        sensor: args.sensor,
+        integrator: args.integrator.clone(),
     };
     let scene = load_scene(&args.scene, &opts, &overrides).map_err(|e| anyhow!("{e}"))?;
 
