@@ -136,6 +136,21 @@ fn bunny_medium_matches_mitsuba() {
     assert!(c.passed, "{c}");
 }
 
+/// The Bunny medium lit by a small sphere light and a point light, no sky: the emitter
+/// choice between two small lights (`emitter::selection`).
+#[test]
+fn bunny_two_lights_matches_mitsuba() {
+    let c = check("bunny_two_lights", &[], 19);
+    assert!(c.passed, "{c}");
+}
+
+/// Power: the albedo 2% off in every channel.
+#[test]
+fn bunny_two_lights_comparison_detects_albedo_off_by_two_percent() {
+    let c = check("bunny_two_lights", &[("albedo", "0.931, 0.833, 0.686")], 64);
+    assert!(!c.passed, "a 2% albedo change went undetected: {c}");
+}
+
 // Power on the media below: a 2% sigma_t change moved the image mean by only 2-6 σ at
 // this budget (z -2.5 in the glass, -2.0 in the fog, -6.0 at most in the Bunny), so the
 // albedo, which these images depend on more strongly, is changed by 2% instead.
