@@ -1,5 +1,5 @@
 //! Medium plugins: Mitsuba's `homogeneous`, with its phase function (`isotropic`,
-//! `hg`).
+//! `hg`, `rayleigh`).
 
 use glam::Vec3;
 
@@ -63,6 +63,7 @@ impl Builder<'_> {
                 let q = Props::new(self.desc, c.object);
                 let ph = match q.obj.plugin.as_str() {
                     "isotropic" => Phase::Isotropic,
+                    "rayleigh" => Phase::Rayleigh,
                     "hg" => {
                         let g = q.float("g", 0.8)?;
                         if !(g > -1.0 && g < 1.0) {
@@ -72,7 +73,7 @@ impl Builder<'_> {
                         }
                         Phase::HenyeyGreenstein { g: g as f32 }
                     }
-                    _ => return Err(unsupported(&q, "phase", "isotropic, hg")),
+                    _ => return Err(unsupported(&q, "phase", "isotropic, hg, rayleigh")),
                 };
                 q.finish("g (hg)")?;
                 ph
