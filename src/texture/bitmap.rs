@@ -8,7 +8,8 @@
 //!   the edge texel repeated) or clamp (`clamp`).
 //! * 8-bit images are sRGB-encoded: each texel is decoded to linear before the blend
 //!   (as Mitsuba decodes stored bytes per texel on lookup), unless `raw` is true.
-//!   16-bit PNGs are decoded the same way; EXR data is linear.
+//!   16-bit PNGs are decoded the same way; float data (EXR, RGBE, PFM) is linear.
+//!   Which files are read and how: `bitmap_file`.
 
 use std::path::Path;
 
@@ -111,28 +112,9 @@ impl Bitmap {
     }
 }
 
-/// Reads `path` (PNG, 8 or 16 bits, grey or RGB, alpha dropped; or EXR) as linear RGB
-/// texels; `raw` skips the sRGB decoding of PNG data. Returns (width, height, texels).
-pub fn read_texels(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Vec3>), String> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    match ext.as_str() {
-        "exr" => {
-            let img = crate::image::read_exr(path).map_err(|e| format!("{e:#}"))?;
-            let texels = img.pixels.iter().map(|p| Vec3::from(*p)).collect();
-            Ok((img.width, img.height, texels))
-        }
-        "png" => read_png(path, raw),
-        _ => Err(format!(
-            "\"{}\": only PNG and OpenEXR images are supported as bitmap textures",
-            path.display()
-        )),
-    }
-}
-
-fn read_png(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Vec3>), String> {
+/// Reads a PNG (8 or 16 bits, grey or RGB, palette expanded, alpha dropped) as linear
+/// RGB texels; `raw` skips the sRGB decoding. Returns (width, height, texels).
+pub(super) fn read_png(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Vec3>), String> {
     let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
     // Palettes and low bit depths become 8-bit; 16-bit data is kept.
@@ -179,6 +161,7 @@ fn read_png(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Vec3>), String>
 
 #[cfg(test)]
 mod tests {
+    use super::super::bitmap_file::read_texels;
     use super::*;
 
     fn bitmap(filter: FilterType, wrap: WrapMode) -> Bitmap {

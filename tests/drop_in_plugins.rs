@@ -1,0 +1,375 @@
+//! Plugins and readings that published scene files need (issue 30, part A): `bitmap`
+//! in every image format Mitsuba 3 reads, the `rayleigh` phase function, `homogeneous`
+//! media with nested `constvolume`s, 0.6 medium `material` presets and 0.5's
+//! three-value `<spectrum>`.
+//!
+//! Renders against Mitsuba 3 follow tests/volpath_equivalence.rs (independent chunks,
+//! per-pixel z-scores, a false-alarm probability of 1e-6), each with a power test that
+//! the same comparison fails on a small change.
+
+mod common;
+
+use std::path::Path;
+
+use common::scene_text::{load_or_build_error, load_text, tmp_dir, SENSOR};
+use common::{check_against_reference, root};
+use glam::Vec3;
+use mediareg::texture::bitmap_file::read_texels;
+
+const CHUNKS: usize = 16;
+const SPP: u32 = 128;
+
+// ---------------------------------------------------------------------------------
+// bitmap: image formats
+// ---------------------------------------------------------------------------------
+
+/// A small 8-bit RGB test image with every kind of value (dark, mid, bright, 0, 255).
+fn test_rgb8() -> (u32, u32, Vec<u8>) {
+    let (w, h) = (7u32, 5u32);
+    let data = (0..w * h * 3)
+        .map(|i| ((i * 37 + (i / 3) * 11) % 256) as u8)
+        .collect::<Vec<u8>>();
+    (w, h, data)
+}
+
+fn write_png(
+    path: &Path,
+    w: u32,
+    h: u32,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    data: &[u8],
+    palette: Option<&[u8]>,
+) {
+    let f = std::fs::File::create(path).unwrap();
+    let mut e = png::Encoder::new(std::io::BufWriter::new(f), w, h);
+    e.set_color(color);
+    e.set_depth(depth);
+    if let Some(p) = palette {
+        e.set_palette(p.to_vec());
+    }
+    e.write_header().unwrap().write_image_data(data).unwrap();
+}
+
+fn texels(path: &Path, raw: bool) -> (usize, usize, Vec<Vec3>) {
+    read_texels(path, raw).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn assert_same(what: &str, a: &(usize, usize, Vec<Vec3>), b: &(usize, usize, Vec<Vec3>)) {
+    assert_eq!((a.0, a.1), (b.0, b.1), "{what}: size");
+    for (i, (x, y)) in a.2.iter().zip(&b.2).enumerate() {
+        assert_eq!(x, y, "{what}: texel {i} differs");
+    }
+}
+
+/// The TGA v2 footer, without which Mitsuba 3 does not recognise a TGA.
+fn tga_footer(bytes: &mut Vec<u8>) {
+    bytes.extend_from_slice(&[0; 8]);
+    bytes.extend_from_slice(b"TRUEVISION-XFILE.\0");
+}
+
+/// BMP (24-bit), TGA (RGB and grey, plain and RLE, with the footer), PPM (P6) and PNG
+/// in palette, grey, grey+alpha, RGBA and 16-bit form decode to exactly the texels of
+/// the plain 8-bit PNG of the same image, sRGB-decoded and `raw`.
+#[test]
+fn integer_formats_decode_to_the_png_texels() {
+    use image::{ColorType, ImageEncoder};
+    let dir = tmp_dir("drop_in", "formats");
+    let (w, h, rgb) = test_rgb8();
+    let png = dir.join("ref.png");
+    write_png(
+        &png,
+        w,
+        h,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &rgb,
+        None,
+    );
+
+    let bmp = dir.join("a.bmp");
+    image::save_buffer(&bmp, &rgb, w, h, ColorType::Rgb8).unwrap();
+    let ppm = dir.join("a.ppm");
+    let mut buf = Vec::new();
+    image::codecs::pnm::PnmEncoder::new(&mut buf)
+        .with_subtype(image::codecs::pnm::PnmSubtype::Pixmap(
+            image::codecs::pnm::SampleEncoding::Binary,
+        ))
+        .write_image(&rgb, w, h, ColorType::Rgb8)
+        .unwrap();
+    std::fs::write(&ppm, &buf).unwrap();
+    let tga = dir.join("a.tga");
+    let mut buf = Vec::new();
+    image::codecs::tga::TgaEncoder::new(&mut buf)
+        .write_image(&rgb, w, h, ColorType::Rgb8)
+        .unwrap();
+    tga_footer(&mut buf);
+    std::fs::write(&tga, &buf).unwrap();
+    // The same TGA without its footer is not a format Mitsuba 3 recognises.
+    let tga_bare = dir.join("bare.tga");
+    std::fs::write(&tga_bare, &buf[..buf.len() - 26]).unwrap();
+    let e = read_texels(&tga_bare, false).unwrap_err();
+    assert!(e.contains("not an image format Mitsuba 3 reads"), "{e}");
+
+    // RGBA PNG (alpha dropped) and 16-bit PNG (v · 257).
+    let rgba: Vec<u8> = rgb
+        .chunks(3)
+        .flat_map(|c| [c[0], c[1], c[2], 100])
+        .collect();
+    let png_rgba = dir.join("rgba.png");
+    write_png(
+        &png_rgba,
+        w,
+        h,
+        png::ColorType::Rgba,
+        png::BitDepth::Eight,
+        &rgba,
+        None,
+    );
+    let rgb16: Vec<u8> = rgb
+        .iter()
+        .flat_map(|&v| (v as u16 * 257).to_be_bytes())
+        .collect();
+    let png16 = dir.join("rgb16.png");
+    write_png(
+        &png16,
+        w,
+        h,
+        png::ColorType::Rgb,
+        png::BitDepth::Sixteen,
+        &rgb16,
+        None,
+    );
+    // Palette PNG: each pixel its own palette entry.
+    let n = (w * h) as usize;
+    let indexed: Vec<u8> = (0..n as u8).collect();
+    let png_pal = dir.join("pal.png");
+    write_png(
+        &png_pal,
+        w,
+        h,
+        png::ColorType::Indexed,
+        png::BitDepth::Eight,
+        &indexed,
+        Some(&rgb),
+    );
+
+    for raw in [false, true] {
+        let want = texels(&png, raw);
+        for f in [&bmp, &ppm, &tga, &png_rgba, &png16, &png_pal] {
+            assert_same(
+                &format!("{} raw={raw}", f.display()),
+                &texels(f, raw),
+                &want,
+            );
+        }
+    }
+
+    // Grey: a grey PNG, grey+alpha PNG and grey TGA (RLE) are grey in every channel.
+    let grey: Vec<u8> = rgb.iter().step_by(3).copied().collect();
+    let png_grey = dir.join("grey.png");
+    write_png(
+        &png_grey,
+        w,
+        h,
+        png::ColorType::Grayscale,
+        png::BitDepth::Eight,
+        &grey,
+        None,
+    );
+    let ga: Vec<u8> = grey.iter().flat_map(|&g| [g, 7]).collect();
+    let png_ga = dir.join("ga.png");
+    write_png(
+        &png_ga,
+        w,
+        h,
+        png::ColorType::GrayscaleAlpha,
+        png::BitDepth::Eight,
+        &ga,
+        None,
+    );
+    // A run-length-encoded grey TGA, written by hand (type 11, 8 bits, top-left origin):
+    // raw packets of one pixel each.
+    let mut t = vec![0u8, 0, 11, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+    t.extend_from_slice(&(w as u16).to_le_bytes());
+    t.extend_from_slice(&(h as u16).to_le_bytes());
+    t.extend_from_slice(&[8, 0x20]);
+    for &g in &grey {
+        t.extend_from_slice(&[0, g]);
+    }
+    tga_footer(&mut t);
+    let tga_grey = dir.join("grey.tga");
+    std::fs::write(&tga_grey, &t).unwrap();
+    for raw in [false, true] {
+        let want = texels(&png_grey, raw);
+        assert!(want.2.iter().all(|t| t.x == t.y && t.y == t.z));
+        assert_eq!(want.2[1].x, texels(&png, raw).2[1].x);
+        for f in [&png_ga, &tga_grey] {
+            assert_same(
+                &format!("{} raw={raw}", f.display()),
+                &texels(f, raw),
+                &want,
+            );
+        }
+    }
+}
+
+/// RGBE (.hdr) and PFM (RGB and grey) decode to exactly the texels of an OpenEXR of the
+/// same float image: linear, never sRGB-decoded, PFM rows bottom-up. The values are
+/// m/256 with each pixel's largest component in [½, 1), which RGBE stores exactly.
+#[test]
+fn float_formats_decode_to_the_exr_texels() {
+    let dir = tmp_dir("drop_in", "float_formats");
+    let (w, h) = (6usize, 4usize);
+    let px: Vec<[f32; 3]> = (0..w * h)
+        .map(|i| {
+            let m = |k: usize| ((i * 29 + k * 53) % 128) as f32 / 256.0;
+            [0.5 + m(0), m(1), m(2)]
+        })
+        .collect();
+    let exr = dir.join("ref.exr");
+    let img = mediareg::image::Image {
+        width: w,
+        height: h,
+        pixels: px.clone(),
+    };
+    mediareg::image::write_exr(&exr, &img).unwrap();
+
+    let hdr = dir.join("a.hdr");
+    let pixels: Vec<image::Rgb<f32>> = px.iter().map(|p| image::Rgb(*p)).collect();
+    image::codecs::hdr::HdrEncoder::new(std::fs::File::create(&hdr).unwrap())
+        .encode(&pixels, w, h)
+        .unwrap();
+
+    // PFM, little-endian (negative scale), bottom row first.
+    let pfm = dir.join("a.pfm");
+    let mut f = format!("PF\n{w} {h}\n-1.0\n").into_bytes();
+    for y in (0..h).rev() {
+        for x in 0..w {
+            for c in px[y * w + x] {
+                f.extend(c.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(&pfm, &f).unwrap();
+    let want = texels(&exr, false);
+    for raw in [false, true] {
+        for p in [&hdr, &pfm] {
+            assert_same(
+                &format!("{} raw={raw}", p.display()),
+                &texels(p, raw),
+                &want,
+            );
+        }
+    }
+
+    // Grey PFM, big-endian with scale 2: every value doubled, in all three channels.
+    let pfm_grey = dir.join("grey.pfm");
+    let mut f = format!("Pf\n{w} {h}\n2\n").into_bytes();
+    for y in (0..h).rev() {
+        for x in 0..w {
+            f.extend(px[y * w + x][1].to_be_bytes());
+        }
+    }
+    std::fs::write(&pfm_grey, &f).unwrap();
+    let g = texels(&pfm_grey, false);
+    for (t, p) in g.2.iter().zip(&px) {
+        assert_eq!(*t, Vec3::splat(2.0 * p[1]));
+    }
+}
+
+/// The JPEG of bitmap_jpeg.xml (4:2:0 chroma, written by libjpeg) decodes to the texels
+/// Mitsuba 3 decodes it to (libjpeg's), stored losslessly as
+/// tests/fixtures/tiles_jpg_decoded_by_mitsuba.png: the decoders' IDCTs and chroma
+/// upsampling are libjpeg-turbo's on both sides, so every byte is the same.
+#[test]
+fn jpeg_decodes_as_mitsuba() {
+    let jpg = root().join("mitsuba_scenes/textures/tiles.jpg");
+    let fixture = root().join("tests/fixtures/tiles_jpg_decoded_by_mitsuba.png");
+    let (a, b) = (texels(&jpg, true), texels(&fixture, true));
+    assert_eq!((a.0, a.1), (b.0, b.1));
+    let steps: Vec<f32> =
+        a.2.iter()
+            .zip(&b.2)
+            .map(|(x, y)| ((*x - *y).abs().max_element() * 255.0).round())
+            .collect();
+    let max = steps.iter().cloned().fold(0.0, f32::max);
+    let off = steps.iter().filter(|&&s| s > 0.0).count();
+    println!(
+        "JPEG vs Mitsuba's decode: max {max} / 255, {off} of {} texels differ",
+        steps.len()
+    );
+    assert!(
+        max <= 1.0 && off * 20 <= steps.len(),
+        "max {max} / 255, {off} texels differ"
+    );
+}
+
+fn bitmap_scene(file: &str) -> String {
+    format!(
+        r#"<scene version="3.0.0">{SENSOR}
+    <shape type="rectangle">
+        <bsdf type="diffuse">
+            <texture type="bitmap" name="reflectance">
+                <string name="filename" value="{file}"/>
+            </texture>
+        </bsdf>
+    </shape>
+</scene>"#
+    )
+}
+
+/// A corrupt JPEG, an unknown format and an 8-bit BMP are errors naming the scene's
+/// file and the line of the filename, and what to do.
+#[test]
+fn unreadable_bitmaps_are_refused_with_file_and_line() {
+    let dir = tmp_dir("drop_in", "bad_bitmaps");
+    std::fs::write(
+        dir.join("broken.jpg"),
+        [0xFF, 0xD8, 0xFF, 0xE0, 0, 16, b'J', b'F'],
+    )
+    .unwrap();
+    std::fs::write(dir.join("notes.png"), b"just some text").unwrap();
+    // An 8-bit (palette) BMP: Mitsuba 3 would read the indices as grey levels.
+    let mut bmp = Vec::new();
+    image::codecs::bmp::BmpEncoder::new(&mut bmp)
+        .encode(&[10, 20, 30, 40], 2, 2, image::ColorType::L8)
+        .unwrap();
+    std::fs::write(dir.join("grey8.bmp"), &bmp).unwrap();
+    for (file, needle) in [
+        ("broken.jpg", "corrupt JPEG data"),
+        ("notes.png", "not an image format Mitsuba 3 reads"),
+        ("grey8.bmp", "8-bit BMP"),
+    ] {
+        let path = dir.join(file);
+        let text = bitmap_scene(&path.display().to_string());
+        let e = load_or_build_error(
+            file,
+            load_text("drop_in", &format!("bad_{file}"), &text, &[]),
+        );
+        assert!(e.contains("scene.xml:6:"), "{file}: no file:line in\n{e}");
+        assert!(e.contains(needle), "{file}: {needle:?} not in\n{e}");
+    }
+}
+
+/// bitmap_jpeg.xml (a JPEG texture, bilinear, repeated) against Mitsuba 3.
+#[test]
+fn bitmap_jpeg_matches_mitsuba() {
+    let c = check_against_reference("bitmap_jpeg", "bitmap_jpeg", &[], CHUNKS, SPP, 31);
+    assert!(c.passed, "{c}");
+}
+
+/// The same comparison fails when the texture is moved by a quarter texel along u.
+#[test]
+fn bitmap_jpeg_comparison_detects_a_quarter_texel_shift() {
+    let du = format!("{}", 0.25 / 48.0);
+    let c = check_against_reference(
+        "bitmap_jpeg",
+        "bitmap_jpeg",
+        &[("du", &du)],
+        CHUNKS,
+        SPP,
+        32,
+    );
+    assert!(!c.passed, "a quarter-texel shift went unnoticed: {c}");
+}
