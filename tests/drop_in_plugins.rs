@@ -373,3 +373,28 @@ fn bitmap_jpeg_comparison_detects_a_quarter_texel_shift() {
     );
     assert!(!c.passed, "a quarter-texel shift went unnoticed: {c}");
 }
+
+// ---------------------------------------------------------------------------------
+// phase rayleigh
+// ---------------------------------------------------------------------------------
+
+/// rayleigh.xml (a medium cube lit from the side, `rayleigh` phase) against Mitsuba 3.
+#[test]
+fn rayleigh_matches_mitsuba() {
+    let c = check_against_reference("rayleigh", "rayleigh", &[], CHUNKS, SPP, 41);
+    assert!(c.passed, "{c}");
+}
+
+/// The same comparison tells Rayleigh from isotropic scattering (same mean cosine 0).
+#[test]
+fn rayleigh_comparison_detects_isotropic() {
+    let c = check_against_reference(
+        "rayleigh",
+        "rayleigh",
+        &[("phase", "isotropic")],
+        CHUNKS,
+        SPP,
+        42,
+    );
+    assert!(!c.passed, "isotropic scattering went unnoticed: {c}");
+}
