@@ -398,3 +398,103 @@ fn rayleigh_comparison_detects_isotropic() {
     );
     assert!(!c.passed, "isotropic scattering went unnoticed: {c}");
 }
+
+// ---------------------------------------------------------------------------------
+// homogeneous media with nested constvolumes
+// ---------------------------------------------------------------------------------
+
+/// A small medium scene (a cube of `medium` behind a null boundary, an area light) in
+/// format `version`, rendered once at a fixed seed.
+fn medium_scene(version: &str, medium: &str) -> String {
+    format!(
+        r#"<scene version="{version}">
+    <integrator type="volpath"/>
+    <sensor type="perspective"><float name="fov" value="40"/>
+        <transform name="to_world"><lookat origin="2, 1.5, 3" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="8"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="24"/><integer name="height" value="16"/></film>
+    </sensor>
+    {medium}
+    <shape type="cube">
+        <transform name="to_world"><scale value="0.5"/></transform>
+        <bsdf type="null"/>
+        <ref name="interior" id="m"/>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="-1" y="1.5" z="0.5"/><float name="radius" value="0.3"/>
+        <emitter type="area"><rgb name="radiance" value="10, 9, 8"/></emitter>
+    </shape>
+</scene>"#
+    )
+}
+
+fn render_text(tag: &str, text: &str, params: &[(&str, &str)]) -> Vec<[f32; 3]> {
+    let desc = load_text("drop_in", tag, text, params).unwrap_or_else(|e| panic!("{tag}: {e}"));
+    let s = common::scene_text::build_desc(tag, &desc);
+    mediareg::integrator::render(&s, &s.shot, &Default::default())
+        .image
+        .pixels
+}
+
+/// albedo and sigma_t as nested `constvolume`s (an rgb above 1 is fine there: Mitsuba 3
+/// reads `value` as an unbounded texture) render bit for bit as the same constants
+/// given as plain properties.
+#[test]
+fn constvolume_renders_as_plain_properties() {
+    let nested = medium_scene(
+        "3.0.0",
+        r#"<medium type="homogeneous" id="m">
+        <volume type="constvolume" name="albedo"><spectrum name="value" value="0.9"/></volume>
+        <volume type="constvolume" name="sigma_t">
+            <rgb name="value" value="4, 2, 1"/>
+            <transform name="to_world"><scale value="2"/></transform>
+        </volume>
+        <phase type="rayleigh"/>
+    </medium>"#,
+    );
+    let plain = medium_scene(
+        "3.0.0",
+        r#"<medium type="homogeneous" id="m">
+        <float name="albedo" value="0.9"/>
+        <rgb name="sigma_t" value="0.5, 0.25, 0.125"/>
+        <float name="scale" value="8"/>
+        <phase type="rayleigh"/>
+    </medium>"#,
+    );
+    let (a, b) = (
+        render_text("cv_nested", &nested, &[]),
+        render_text("cv_plain", &plain, &[]),
+    );
+    assert!(a.iter().flatten().any(|v| *v > 0.0), "black image");
+    assert_eq!(a, b, "nested constvolume and plain properties differ");
+    // The default value of a constvolume is 1.
+    let default = medium_scene(
+        "3.0.0",
+        r#"<medium type="homogeneous" id="m"><volume type="constvolume" name="sigma_t"/></medium>"#,
+    );
+    let one = medium_scene(
+        "3.0.0",
+        r#"<medium type="homogeneous" id="m"><float name="sigma_t" value="1"/></medium>"#,
+    );
+    assert_eq!(
+        render_text("cv_default", &default, &[]),
+        render_text("cv_one", &one, &[])
+    );
+}
+
+/// A grid volume (heterogeneous) is refused at its line, with what to do.
+#[test]
+fn gridvolume_is_refused() {
+    let text = medium_scene(
+        "3.0.0",
+        r#"<medium type="homogeneous" id="m">
+        <volume type="gridvolume" name="sigma_t"><string name="filename" value="smoke.vol"/></volume>
+    </medium>"#,
+    );
+    let e = load_or_build_error("grid", load_text("drop_in", "grid", &text, &[]));
+    assert!(e.contains("scene.xml:9:"), "no file:line in\n{e}");
+    assert!(
+        e.contains("gridvolume") && e.contains("heterogeneous"),
+        "{e}"
+    );
+}
