@@ -16,7 +16,9 @@
 //! * a shape with a medium and no bsdf was index-matched (Mitsuba 0.6 passed light
 //!   straight through it) and gets a `null` bsdf; Mitsuba 3 would make it diffuse.
 //!
-//! A 0.6 medium `material` preset (scattering tables) is refused with what to write.
+//! * a medium `material` preset (0.6's table of measured media, `media_presets`)
+//!   becomes the σ_s, σ_a 0.6 rendered with (× 100, σ_s reduced by 1 − g), then σ_t and
+//!   albedo as above; the medium's `scale` (or 0.5's `density`) multiplies them as in 0.6.
 
 use glam::{DMat4, DVec3};
 
@@ -67,16 +69,6 @@ pub fn from_v1(
         Ok(())
     };
     if obj.kind == ObjectKind::Medium && obj.plugin == "homogeneous" {
-        if let Some(p) = obj.props.iter().find(|p| p.name == "material") {
-            return Err(SceneError::at(
-                &p.loc,
-                format!(
-                    "{}: the Mitsuba 0.6 material presets (measured scattering tables) are not supported",
-                    obj.label()
-                ),
-            )
-            .with_hint("give sigmaS and sigmaA (or sigma_t and albedo) instead"));
-        }
         if let Some(i) = obj.props.iter().position(|p| p.name == "density") {
             if obj.props.iter().any(|p| p.name == "scale") {
                 return err_at(
@@ -87,7 +79,10 @@ pub fn from_v1(
             obj.props[i].name = "scale".into();
             convert(obj, "density read as scale".into())?;
         }
-        if obj
+        if let Some(preset) = material_preset(obj)? {
+            let what = sigma_s_a_to_t_albedo(obj)?;
+            convert(obj, format!("{preset}: {what}"))?;
+        } else if obj
             .props
             .iter()
             .any(|p| p.name == "sigma_s" || p.name == "sigma_a")
@@ -164,6 +159,61 @@ fn uv_offsets_to_transform(obj: &mut Object) -> Result<()> {
         loc,
     });
     Ok(())
+}
+
+/// A 0.6 `material` preset on a homogeneous medium: replaced by the `sigma_s` and
+/// `sigma_a` 0.6 rendered with (a medium `g` property, which 0.6 used to reduce σ_s, is
+/// consumed); returns what was read, for the note. 0.6 refuses a preset together with
+/// explicit coefficients, and so does this.
+fn material_preset(obj: &mut Object) -> Result<Option<String>> {
+    use super::media_presets::{coefficients, find, names};
+    let Some(i) = obj.props.iter().position(|p| p.name == "material") else {
+        return Ok(None);
+    };
+    let p = &obj.props[i];
+    let Value::String(name) = &p.value else {
+        return err_at(&p.loc, "\"material\" must be a <string>");
+    };
+    let loc = p.loc.clone();
+    let Some(preset) = find(name) else {
+        return Err(SceneError::at(
+            &loc,
+            format!(
+                "{}: unknown Mitsuba 0.6 medium material \"{name}\"",
+                obj.label()
+            ),
+        )
+        .with_hint(format!("the presets are: {}", names())));
+    };
+    let manual = ["sigma_s", "sigma_a", "sigma_t", "albedo"];
+    if let Some(q) = obj.props.iter().find(|q| manual.contains(&q.name.as_str())) {
+        return err_at(
+            &q.loc,
+            format!(
+                "{}: give either the material preset \"{name}\" or scattering coefficients, not both (as Mitsuba 0.6)",
+                obj.label()
+            ),
+        );
+    }
+    let g = match obj.props.iter().find(|q| q.name == "g") {
+        Some(q) => Some(constant_rgb(q)?.to_array()),
+        None => None,
+    };
+    let (s, a) = coefficients(preset, g);
+    let what = format!(
+        "material \"{}\" (mm⁻¹ × 100, σ_s × (1 − g{}))",
+        preset.name,
+        if g.is_some() { " of the medium" } else { "" }
+    );
+    obj.props.retain(|q| q.name != "material" && q.name != "g");
+    for (n, v) in [("sigma_s", s), ("sigma_a", a)] {
+        obj.props.push(Property {
+            name: n.into(),
+            value: Value::Rgb(DVec3::from_array(v)),
+            loc: loc.clone(),
+        });
+    }
+    Ok(Some(what))
 }
 
 /// A constant colour property as RGB (float, rgb or constant spectrum).
