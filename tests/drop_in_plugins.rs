@@ -616,3 +616,52 @@ fn v06_material_preset_refusals() {
     .unwrap_err();
     assert!(e.contains("scene.xml:9:") && e.contains("not both"), "{e}");
 }
+
+// ---------------------------------------------------------------------------------
+// 0.5 three-value spectra
+// ---------------------------------------------------------------------------------
+
+/// In a 0.5 file `<spectrum value="r, g, b"/>` is RGB (0.5's RGB mode): it renders bit
+/// for bit as `<rgb>`, with one warning line per such spectrum; `--strict-v3` refuses it
+/// at its line, and a 3.0 file still does not accept it.
+#[test]
+fn v05_three_value_spectrum_is_rgb() {
+    let medium = |tag: &str| {
+        format!(
+            r#"<medium type="homogeneous" id="m">
+        <{tag} name="sigmaS" value="0.5, 1.0, 1.5"/>
+        <{tag} name="sigmaA" value="0.25, 0.125, 0"/>
+    </medium>"#
+        )
+    };
+    let spectra = medium_scene("0.5.0", &medium("spectrum"));
+    let rgb = medium_scene("0.5.0", &medium("rgb"));
+    let (ds, dr) = (
+        load_v06("v05_spectrum", &spectra, false).unwrap(),
+        load_v06("v05_rgb", &rgb, false).unwrap(),
+    );
+    let notes: Vec<&String> = ds.notes.iter().filter(|n| n.contains("0.5 file")).collect();
+    assert_eq!(notes.len(), 2, "{notes:?}");
+    assert!(
+        notes[0].contains("scene.xml:9:") && notes[0].contains("<rgb value=\"0.5, 1, 1.5\">"),
+        "{}",
+        notes[0]
+    );
+    println!("{}", notes[0]);
+    assert!(!dr.notes.iter().any(|n| n.contains("0.5 file")));
+    let (a, b) = (
+        render_desc("v05_spectrum", &ds),
+        render_desc("v05_rgb", &dr),
+    );
+    assert!(a.iter().flatten().any(|v| *v > 0.0), "black image");
+    assert_eq!(a, b, "<spectrum r, g, b> and <rgb> render differently");
+
+    let e = load_v06("v05_strict", &spectra, true).unwrap_err();
+    assert!(e.contains("scene.xml:9:") && e.contains("strict-v3"), "{e}");
+    let v3 = medium_scene(
+        "3.0.0",
+        r#"<medium type="homogeneous" id="m"><spectrum name="albedo" value="0.5, 0.6, 0.7"/></medium>"#,
+    );
+    let e = load_v06("v3_triplet", &v3, false).unwrap_err();
+    assert!(e.contains("could not parse spectrum value"), "{e}");
+}

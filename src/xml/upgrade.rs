@@ -16,6 +16,9 @@
 //! * a shape with a medium and no bsdf was index-matched (Mitsuba 0.6 passed light
 //!   straight through it) and gets a `null` bsdf; Mitsuba 3 would make it diffuse.
 //!
+//! * 0.5's `<spectrum value="r, g, b"/>` (three values, no wavelengths) was the
+//!   spectrum's three samples, i.e. RGB in 0.5's RGB mode, and is read as `<rgb>`
+//!   (`rgb_spectrum`, called by the property reader in `load.rs`);
 //! * a medium `material` preset (0.6's table of measured media, `media_presets`)
 //!   becomes the σ_s, σ_a 0.6 rendered with (× 100, σ_s reduced by 1 − g), then σ_t and
 //!   albedo as above; the medium's `scale` (or 0.5's `density`) multiplies them as in 0.6.
@@ -23,7 +26,7 @@
 use glam::{DMat4, DVec3};
 
 use super::description::{Child, ObjId, Object, ObjectKind, Property, Value};
-use crate::error::{err_at, Result, SceneError};
+use crate::error::{err_at, Loc, Result, SceneError};
 
 /// Upgrades `obj` (just read from a file older than 2.0): Mitsuba 3's own rules, then the
 /// 0.6 meanings (a line each in `notes`, or an error when `strict`). New objects (a
@@ -120,6 +123,33 @@ pub fn from_v1(
         }
     }
     Ok(())
+}
+
+/// 0.5's `<spectrum name value="r, g, b"/>` at `loc`: in 0.5's RGB mode a spectrum had
+/// three samples, so three values without wavelengths were an RGB colour; read as
+/// `<rgb>` with a note (an error under `strict`: Mitsuba 3 does not read it).
+pub fn rgb_spectrum(
+    loc: &Loc,
+    name: &str,
+    rgb: DVec3,
+    notes: &mut Vec<String>,
+    strict: bool,
+) -> Result<Value> {
+    let what = format!(
+        "<spectrum name=\"{name}\"> with three values and no wavelengths read as <rgb value=\"{}, {}, {}\"> (Mitsuba 0.5's RGB mode)",
+        rgb.x, rgb.y, rgb.z
+    );
+    if strict {
+        return Err(SceneError::at(
+            loc,
+            format!("a Mitsuba 0.5 form that Mitsuba 3 does not read (--strict-v3): {what}"),
+        )
+        .with_hint(
+            "without --strict-v3 mediareg reads it so; or write <rgb name=... value=\"r, g, b\"/>",
+        ));
+    }
+    notes.push(format!("{loc}: 0.5 file: {what}"));
+    Ok(Value::Rgb(rgb))
 }
 
 /// `uoffset`, `voffset`, `uscale`, `vscale` → `to_uv` = scale · translate, as Mitsuba 3.
