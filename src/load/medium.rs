@@ -22,8 +22,16 @@ impl Builder<'_> {
         };
         let v = Props::new(self.desc, child.object);
         if v.obj.plugin != "constvolume" {
-            return Err(unsupported(&v, "volume", "constvolume").with_hint(
-                "a grid or other spatially varying volume makes the medium heterogeneous, which mediareg does not render; give a constant (a <float>, <rgb> or <spectrum>, or a constvolume)",
+            return Err(SceneError::at(
+                &child.loc,
+                format!(
+                    "{}: \"{name}\" given as a nested volume plugin \"{}\"; only a constant (or a constvolume) is supported",
+                    p.obj.label(),
+                    v.obj.plugin
+                ),
+            )
+            .with_hint(
+                "a grid or other spatially varying volume makes the medium heterogeneous, which mediareg does not render; give a <float>, <rgb> or <spectrum>, or a constvolume",
             ));
         }
         let value = v.color_nonneg_as("value", Vec3::ONE, SpectrumUse::Unbounded)?;
