@@ -29,8 +29,6 @@ use std::path::Path;
 use glam::Vec3;
 use image::{DynamicImage, ImageFormat};
 
-use super::bitmap::srgb_to_linear;
-
 /// Width, height and linear RGB texels, row-major from the image's top row.
 pub type Texels = (usize, usize, Vec<Vec3>);
 
@@ -80,7 +78,7 @@ pub fn read_texels(path: &Path, raw: bool) -> Result<Texels, String> {
             .map_err(|e| format!("\"{name}\": corrupt or unsupported {fmt:?} data: {e}"))
     };
     match format {
-        Format::Png => super::bitmap::read_png(path, raw),
+        Format::Png => read_png(path, raw),
         Format::Exr => {
             let img = crate::image::read_exr(path).map_err(|e| format!("{e:#}"))?;
             let texels = img.pixels.iter().map(|p| Vec3::from(*p)).collect();
@@ -108,6 +106,62 @@ pub fn read_texels(path: &Path, raw: bool) -> Result<Texels, String> {
         }
         Format::Jpeg => read_jpeg(&bytes, raw).map_err(|e| format!("\"{name}\": {e}")),
     }
+}
+
+/// sRGB decoding of an encoded value in [0, 1] (IEC 61966-2-1).
+pub fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Reads a PNG (8 or 16 bits, grey or RGB, palette expanded, alpha dropped) as linear
+/// RGB texels; `raw` skips the sRGB decoding. Returns (width, height, texels).
+fn read_png(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Vec3>), String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
+    // Palettes and low bit depths become 8-bit; 16-bit data is kept.
+    decoder.set_transformations(png::Transformations::EXPAND);
+    let mut reader = decoder
+        .read_info()
+        .map_err(|e| format!("{}: not a readable PNG: {e}", path.display()))?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| format!("{}: image too large", path.display()))?;
+    let mut buf = vec![0u8; size];
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| format!("{}: corrupt PNG data: {e}", path.display()))?;
+    let (w, h) = (info.width as usize, info.height as usize);
+    let channels = info.color_type.samples();
+    let sixteen = info.bit_depth == png::BitDepth::Sixteen;
+    let bytes = if sixteen { 2 } else { 1 };
+    let value = |i: usize| -> f32 {
+        let v = if sixteen {
+            u16::from_be_bytes([buf[2 * i], buf[2 * i + 1]]) as f32 / 65535.0
+        } else {
+            buf[i] as f32 / 255.0
+        };
+        if raw {
+            v
+        } else {
+            srgb_to_linear(v)
+        }
+    };
+    let line = info.line_size / bytes;
+    let mut texels = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * line + x * channels;
+            texels.push(match channels {
+                1 | 2 => Vec3::splat(value(i)),
+                _ => Vec3::new(value(i), value(i + 1), value(i + 2)),
+            });
+        }
+    }
+    Ok((w, h, texels))
 }
 
 /// JPEG by libjpeg-turbo's decoder (the `mozjpeg` crate, a libjpeg-turbo fork), which
