@@ -745,3 +745,33 @@ fn damaged_images_never_panic() {
     }
     println!("damaged images: {read} read, {refused} refused");
 }
+
+/// `envmap` reads the same formats as `bitmap`: the sky of envmap.xml written as a PFM
+/// (the same f32 values) lights a scene bit for bit as the OpenEXR does.
+#[test]
+fn envmap_from_pfm_renders_as_from_exr() {
+    let exr = root().join("mitsuba_scenes/textures/sky.exr");
+    let sky = mediareg::image::read_exr(&exr).unwrap();
+    let dir = tmp_dir("drop_in", "envmap_pfm");
+    let pfm = dir.join("sky.pfm");
+    let mut f = format!("PF\n{} {}\n-1\n", sky.width, sky.height).into_bytes();
+    for y in (0..sky.height).rev() {
+        for p in &sky.pixels[y * sky.width..(y + 1) * sky.width] {
+            f.extend(p.iter().flat_map(|c| c.to_le_bytes()));
+        }
+    }
+    std::fs::write(&pfm, &f).unwrap();
+    let scene = |file: &Path| {
+        format!(
+            r#"<scene version="3.0.0">{SENSOR}
+    <shape type="sphere"><point name="center" x="0" y="0" z="4"/><bsdf type="diffuse"/></shape>
+    <emitter type="envmap"><string name="filename" value="{}"/></emitter>
+</scene>"#,
+            file.display()
+        )
+    };
+    let a = render_text("env_exr", &scene(&exr), &[]);
+    let b = render_text("env_pfm", &scene(&pfm), &[]);
+    assert!(a.iter().flatten().any(|v| *v > 0.0), "black image");
+    assert_eq!(a, b);
+}
