@@ -112,14 +112,15 @@ fn uv_offsets_and_density() {
     assert_eq!(d.notes.len(), 1, "{:?}", d.notes);
 }
 
-/// What cannot be read: a 0.6 material preset, sigmaS without sigmaA, both forms.
+/// What cannot be read: an unknown 0.6 material preset (the known ones:
+/// tests/drop_in_plugins.rs), sigmaS without sigmaA, both forms.
 #[test]
 fn unreadable_06_media_are_refused_clearly() {
     for (tag, body, needle) in [
         (
             "preset",
-            r#"<medium type="homogeneous"><string name="material" value="Ketchup"/></medium>"#,
-            "material presets",
+            r#"<medium type="homogeneous"><string name="material" value="Gravy"/></medium>"#,
+            "unknown Mitsuba 0.6 medium material",
         ),
         (
             "half",

@@ -23,30 +23,25 @@ pub const UNIFORM_SPECTRUM_RGB: Vec3 = Vec3::new(
 );
 
 impl Builder<'_> {
-    /// `envmap`: an OpenEXR latitude-longitude image, `scale`, a rotation `to_world`;
+    /// `envmap`: a latitude-longitude image (any `bitmap` format), `scale`, a rotation `to_world`;
     /// `mis_compensation` only changes Mitsuba's sampling, not the image (read, unused).
     pub(super) fn envmap(&self, p: &Props) -> Result<EnvMap> {
         let Some((name, loc)) = p.string_opt("filename")? else {
-            return Err(p.error("envmap needs a filename (an OpenEXR latitude-longitude image)"));
+            return Err(p.error("envmap needs a filename (a latitude-longitude image)"));
         };
         let path = resolve_path(&self.desc.search_path, name).ok_or_else(|| {
             SceneError::at(loc, format!("environment map \"{name}\" not found"))
                 .with_hint("add its folder with -a DIR")
         })?;
-        if path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .as_deref()
-            != Some("exr")
-        {
-            return Err(SceneError::at(
-                loc,
-                format!("environment map \"{name}\": only OpenEXR (.exr) images are supported"),
-            ));
-        }
-        let img = crate::image::read_exr(&path)
-            .map_err(|e| SceneError::at(loc, format!("environment map \"{name}\": {e:#}")))?;
+        // Any format Mitsuba's `Bitmap` reads, made linear RGB as Mitsuba's envmap does
+        // (`convert(RGB, Float, srgb = false)`: 8/16-bit data sRGB-decoded).
+        let (width, height, texels) = crate::texture::bitmap_file::read_texels(&path, false)
+            .map_err(|e| SceneError::at(loc, format!("environment map \"{name}\": {e}")))?;
+        let img = crate::image::Image {
+            width,
+            height,
+            pixels: texels.iter().map(|t| t.to_array()).collect(),
+        };
         if img.width < 2 || img.height < 3 {
             return Err(SceneError::at(
                 loc,

@@ -1,5 +1,5 @@
 //! Medium plugins: Mitsuba's `homogeneous`, with its phase function (`isotropic`,
-//! `hg`).
+//! `hg`, `rayleigh`).
 
 use glam::Vec3;
 
@@ -11,6 +11,36 @@ use crate::medium::{HomogeneousMedium, Phase};
 use crate::xml::description::{ObjId, ObjectKind, Value};
 
 impl Builder<'_> {
+    /// A medium's volume parameter `name`: a constant property (which Mitsuba 3 wraps in
+    /// a `constvolume` itself), or a nested `<volume type="constvolume">` whose `value`
+    /// (an unbounded texture in Mitsuba 3's `src/volumes/const.cpp`, default 1; a float,
+    /// rgb or spectrum) is that constant: the medium stays homogeneous. Any other volume
+    /// plugin varies in space and is refused.
+    fn volume_constant(&self, p: &Props, name: &str, default: Vec3) -> Result<Vec3> {
+        let Some(child) = p.named_child_of(name, ObjectKind::Volume)? else {
+            return p.color_nonneg_as(name, default, SpectrumUse::Unbounded);
+        };
+        let v = Props::new(self.desc, child.object);
+        if v.obj.plugin != "constvolume" {
+            return Err(SceneError::at(
+                &child.loc,
+                format!(
+                    "{}: \"{name}\" given as a nested volume plugin \"{}\"; only a constant (or a constvolume) is supported",
+                    p.obj.label(),
+                    v.obj.plugin
+                ),
+            )
+            .with_hint(
+                "a grid or other spatially varying volume makes the medium heterogeneous, which mediareg does not render; give a <float>, <rgb> or <spectrum>, or a constvolume",
+            ));
+        }
+        let value = v.color_nonneg_as("value", Vec3::ONE, SpectrumUse::Unbounded)?;
+        // The volume's placement does not change a constant.
+        v.transform("to_world")?;
+        v.finish("value, to_world")?;
+        Ok(value)
+    }
+
     pub(super) fn medium(&mut self, id: ObjId) -> Result<u32> {
         if let Some(&i) = self.medium_ids.get(&id) {
             return Ok(i);
@@ -22,11 +52,11 @@ impl Builder<'_> {
             ));
         }
         // Both are Mitsuba volumes (`constvolume`), whose values are unbounded textures.
-        let albedo = p.color_nonneg_as("albedo", Vec3::splat(0.75), SpectrumUse::Unbounded)?;
+        let albedo = self.volume_constant(&p, "albedo", Vec3::splat(0.75))?;
         if albedo.max_element() > 1.0 {
             return Err(p.error(format!("albedo {albedo} must be in [0, 1]")));
         }
-        let sigma_t = p.color_nonneg_as("sigma_t", Vec3::ONE, SpectrumUse::Unbounded)?;
+        let sigma_t = self.volume_constant(&p, "sigma_t", Vec3::ONE)?;
         // Mitsuba 3 turns an `<rgb>` sigma_t into a bounded sRGB texture, which refuses
         // components above 1; give the same file the same meaning (an error).
         if let Some((Value::Rgb(c), loc)) = p.get("sigma_t") {
@@ -82,6 +112,7 @@ impl Builder<'_> {
         let q = Props::new(self.desc, id);
         let ph = match q.obj.plugin.as_str() {
             "isotropic" => Phase::Isotropic,
+            "rayleigh" => Phase::Rayleigh,
             "hg" => {
                 let g = q.float("g", 0.8)?;
                 if !(g > -1.0 && g < 1.0) {
@@ -89,7 +120,7 @@ impl Builder<'_> {
                 }
                 Phase::HenyeyGreenstein { g: g as f32 }
             }
-            _ => return Err(unsupported(&q, "phase", "isotropic, hg")),
+            _ => return Err(unsupported(&q, "phase", "isotropic, hg, rayleigh")),
         };
         q.finish("g (hg)")?;
         Ok(ph)

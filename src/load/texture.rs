@@ -8,7 +8,8 @@ use glam::Vec3;
 use super::props::Props;
 use super::{unsupported, Builder};
 use crate::error::{Result, SceneError};
-use crate::texture::bitmap::{read_texels, Bitmap, FilterType, WrapMode};
+use crate::texture::bitmap::{Bitmap, FilterType, WrapMode};
+use crate::texture::bitmap_file::read_texels;
 use crate::texture::Texture;
 use crate::xml::description::ObjectKind;
 use crate::xml::resolve::resolve_path;
@@ -48,7 +49,8 @@ impl Builder<'_> {
         })
     }
 
-    /// Mitsuba's `bitmap` as a reflectance: `filename` (PNG or OpenEXR), `filter_type`
+    /// Mitsuba's `bitmap` as a reflectance: `filename` (any format Mitsuba reads:
+    /// `bitmap_file`), `filter_type`
     /// (bilinear), `wrap_mode` (repeat), `raw` (false), `to_uv`; `format` and `accel`
     /// only choose Mitsuba's storage and are read. Texels must lie in [0, 1].
     pub(super) fn bitmap(&self, t: Props, name: &str) -> Result<Texture> {

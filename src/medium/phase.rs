@@ -1,4 +1,5 @@
-//! Phase functions: `isotropic` and Henyey–Greenstein `hg` (Mitsuba 3 `src/phase/`).
+//! Phase functions: `isotropic`, Henyey–Greenstein `hg` and `rayleigh` (Mitsuba 3
+//! `src/phase/`).
 //!
 //! Directions follow propagation: `d_in` is the direction the light travelled before
 //! the scattering event, `d_out` after it, and cos θ = d_in · d_out. Mitsuba evaluates
@@ -6,6 +7,13 @@
 //! textbook form below: g > 0 scatters forward.
 //!
 //!   p_HG(cos θ) = (1 − g²) / (4π (1 + g² − 2g cos θ)^{3/2})
+//!
+//! Rayleigh scattering (unpolarized; Mitsuba 3 `src/phase/rayleigh.cpp`, Chandrasekhar
+//! 1960, *Radiative Transfer*, §17):
+//!
+//!   p_R(cos θ) = 3/(16π) (1 + cos² θ),
+//!
+//! symmetric in cos θ, so the direction convention does not matter for it.
 //!
 //! Sampling is exact (the phase value equals its pdf), so the sample weight is 1.
 
@@ -53,6 +61,24 @@ fn hg_sample_peak_distance(g: f64, u: f64) -> f64 {
     ((1.0 - a) * u * (s + 1.0 - a) / q).clamp(0.0, 2.0)
 }
 
+/// p_R(cos θ) = 3/(16π) (1 + cos² θ).
+#[inline]
+fn rayleigh(cos_theta: f64) -> f64 {
+    3.0 / (16.0 * std::f64::consts::PI) * (1.0 + cos_theta * cos_theta)
+}
+
+/// Inverse CDF of p_R in μ = cos θ. The marginal density of μ is (3/8)(1 + μ²), whose
+/// CDF (3/8)(μ + μ³/3) + ½ = u gives the depressed cubic μ³ + 3μ − 2z = 0 with
+/// z = 2(2u − 1). It has one real root (discriminant z² + 1 > 0), by Cardano's formula
+///   μ = ∛(z + √(z² + 1)) + ∛(z − √(z² + 1)),
+/// the same expression as Mitsuba's `sample`.
+#[inline]
+fn rayleigh_sample_cos(u: f64) -> f64 {
+    let z = 2.0 * (2.0 * u - 1.0);
+    let r = (z * z + 1.0).sqrt();
+    ((z + r).cbrt() + (z - r).cbrt()).clamp(-1.0, 1.0)
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub enum Phase {
     Isotropic,
@@ -60,6 +86,8 @@ pub enum Phase {
     HenyeyGreenstein {
         g: f32,
     },
+    /// Rayleigh's (1 + cos² θ) law, no parameters.
+    Rayleigh,
 }
 
 impl Phase {
@@ -69,6 +97,7 @@ impl Phase {
         match *self {
             Phase::Isotropic => 1.0 / (4.0 * PI),
             Phase::HenyeyGreenstein { g } => hg(g as f64, cos_theta as f64) as f32,
+            Phase::Rayleigh => rayleigh(cos_theta as f64) as f32,
         }
     }
 
@@ -85,6 +114,10 @@ impl Phase {
                 (w, hg_peak(g, peak) as f32)
             }
             Phase::Isotropic => (2.0 * u.x as f64, 1.0 / (4.0 * PI)),
+            Phase::Rayleigh => {
+                let mu = rayleigh_sample_cos(u.x as f64);
+                (1.0 - mu, rayleigh(mu) as f32)
+            }
         };
         let sin_theta = (w * (2.0 - w)).max(0.0).sqrt() as f32;
         let cos_theta = (1.0 - w) as f32;
@@ -147,6 +180,67 @@ mod tests {
             mean /= (n * n) as f64;
             assert!((mean - g as f64).abs() < 2e-3, "g={g}: mean cos {mean}");
         }
+    }
+
+    /// Rayleigh: ∫ p dω = 1 (midpoint rule in cos θ), and sampled cosines follow the
+    /// marginal (3/8)(1 + μ²): chi-square over 40 equal-width μ bins, the returned pdf
+    /// being p_R of the returned direction.
+    #[test]
+    fn rayleigh_normalised_and_sampled_exactly() {
+        use crate::sampling::Pcg32;
+        use statrs::distribution::{ChiSquared, ContinuousCDF};
+        let n = 100_000;
+        let norm: f64 = (0..n)
+            .map(|i| {
+                rayleigh(-1.0 + 2.0 * (i as f64 + 0.5) / n as f64)
+                    * 2.0
+                    * 2.0
+                    * std::f64::consts::PI
+                    / n as f64
+            })
+            .sum();
+        assert!((norm - 1.0).abs() < 1e-9, "∫p = {norm}");
+        // Symmetric: forward and backward scattering alike; twice the side value.
+        let p = Phase::Rayleigh;
+        assert_eq!(p.eval(0.6), p.eval(-0.6));
+        assert!((p.eval(1.0) / p.eval(0.0) - 2.0).abs() < 1e-6);
+
+        let d_in = Vec3A::new(0.3, -0.4, 0.866).normalize();
+        let bins = 40;
+        let mut counts = vec![0usize; bins];
+        let mut rng = Pcg32::new(23, 1);
+        let samples = 200_000;
+        for _ in 0..samples {
+            let (d, pdf) = p.sample(d_in, rng.next_2d());
+            assert!((d.length() - 1.0).abs() < 1e-4);
+            let c = d.dot(d_in).clamp(-1.0, 1.0);
+            assert!(
+                (pdf - p.eval(c)).abs() <= 1e-4 * pdf,
+                "pdf {pdf} vs {}",
+                p.eval(c)
+            );
+            counts[(((c + 1.0) / 2.0 * bins as f32) as usize).min(bins - 1)] += 1;
+        }
+        // P(bin) from the marginal's CDF F(μ) = (3/8)(μ + μ³/3) + ½.
+        let cdf = |m: f64| 0.375 * (m + m * m * m / 3.0) + 0.5;
+        let chi2: f64 = (0..bins)
+            .map(|b| {
+                let (lo, hi) = (
+                    -1.0 + 2.0 * b as f64 / bins as f64,
+                    -1.0 + 2.0 * (b + 1) as f64 / bins as f64,
+                );
+                let e = (cdf(hi) - cdf(lo)) * samples as f64;
+                (counts[b] as f64 - e).powi(2) / e
+            })
+            .sum();
+        let limit = ChiSquared::new((bins - 1) as f64)
+            .unwrap()
+            .inverse_cdf(1.0 - 1e-6);
+        assert!(chi2 < limit, "chi-square {chi2:.1} (limit {limit:.1})");
+        // The inverse CDF at the ends and the middle.
+        assert!((rayleigh_sample_cos(0.0) + 1.0).abs() < 1e-12);
+        assert!((rayleigh_sample_cos(1.0) - 1.0).abs() < 1e-12);
+        assert!(rayleigh_sample_cos(0.5).abs() < 1e-12);
     }
 
     /// The distance from the peak of a sampled direction, measured without the f32

@@ -8,9 +8,8 @@
 //!   the edge texel repeated) or clamp (`clamp`).
 //! * 8-bit images are sRGB-encoded: each texel is decoded to linear before the blend
 //!   (as Mitsuba decodes stored bytes per texel on lookup), unless `raw` is true.
-//!   16-bit PNGs are decoded the same way; EXR data is linear.
-
-use std::path::Path;
+//!   16-bit PNGs are decoded the same way; float data (EXR, RGBE, PFM) is linear.
+//!   Which files are read and how: `bitmap_file`.
 
 use glam::{Vec2, Vec3};
 
@@ -37,15 +36,6 @@ pub struct Bitmap {
     pub wrap: WrapMode,
     /// The 2D affine `to_uv`: rows (a, b, tx) and (c, d, ty).
     pub to_uv: [[f32; 3]; 2],
-}
-
-/// sRGB decoding of an encoded value in [0, 1] (IEC 61966-2-1).
-pub fn srgb_to_linear(v: f32) -> f32 {
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 impl WrapMode {
@@ -111,75 +101,11 @@ impl Bitmap {
     }
 }
 
-/// Reads `path` (PNG, 8 or 16 bits, grey or RGB, alpha dropped; or EXR) as linear RGB
-/// texels; `raw` skips the sRGB decoding of PNG data. Returns (width, height, texels).
-pub fn read_texels(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Vec3>), String> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    match ext.as_str() {
-        "exr" => {
-            let img = crate::image::read_exr(path).map_err(|e| format!("{e:#}"))?;
-            let texels = img.pixels.iter().map(|p| Vec3::from(*p)).collect();
-            Ok((img.width, img.height, texels))
-        }
-        "png" => read_png(path, raw),
-        _ => Err(format!(
-            "\"{}\": only PNG and OpenEXR images are supported as bitmap textures",
-            path.display()
-        )),
-    }
-}
-
-fn read_png(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Vec3>), String> {
-    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
-    // Palettes and low bit depths become 8-bit; 16-bit data is kept.
-    decoder.set_transformations(png::Transformations::EXPAND);
-    let mut reader = decoder
-        .read_info()
-        .map_err(|e| format!("{}: not a readable PNG: {e}", path.display()))?;
-    let size = reader
-        .output_buffer_size()
-        .ok_or_else(|| format!("{}: image too large", path.display()))?;
-    let mut buf = vec![0u8; size];
-    let info = reader
-        .next_frame(&mut buf)
-        .map_err(|e| format!("{}: corrupt PNG data: {e}", path.display()))?;
-    let (w, h) = (info.width as usize, info.height as usize);
-    let channels = info.color_type.samples();
-    let sixteen = info.bit_depth == png::BitDepth::Sixteen;
-    let bytes = if sixteen { 2 } else { 1 };
-    let value = |i: usize| -> f32 {
-        let v = if sixteen {
-            u16::from_be_bytes([buf[2 * i], buf[2 * i + 1]]) as f32 / 65535.0
-        } else {
-            buf[i] as f32 / 255.0
-        };
-        if raw {
-            v
-        } else {
-            srgb_to_linear(v)
-        }
-    };
-    let line = info.line_size / bytes;
-    let mut texels = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * line + x * channels;
-            texels.push(match channels {
-                1 | 2 => Vec3::splat(value(i)),
-                _ => Vec3::new(value(i), value(i + 1), value(i + 2)),
-            });
-        }
-    }
-    Ok((w, h, texels))
-}
-
 #[cfg(test)]
 mod tests {
+    use super::super::bitmap_file::{read_texels, srgb_to_linear};
     use super::*;
+    use std::path::Path;
 
     fn bitmap(filter: FilterType, wrap: WrapMode) -> Bitmap {
         // 2 × 2: black, red / green, white.

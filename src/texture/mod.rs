@@ -4,6 +4,7 @@
 //! (`bitmap`).
 
 pub mod bitmap;
+pub mod bitmap_file;
 pub mod uv;
 
 use std::sync::Arc;

@@ -548,6 +548,13 @@ impl Loader {
                     let list = parse_list(&v, loc)?;
                     match list.as_slice() {
                         [x] => Value::Spectrum(*x),
+                        [r, g, b] if version < Version(2, 0, 0) => super::upgrade::rgb_spectrum(
+                            loc,
+                            &name,
+                            DVec3::new(*r, *g, *b),
+                            &mut self.notes,
+                            self.strict_v3,
+                        )?,
                         _ => return err_at(loc, format!("could not parse spectrum value \"{v}\"")),
                     }
                 }

@@ -16,12 +16,17 @@
 //! * a shape with a medium and no bsdf was index-matched (Mitsuba 0.6 passed light
 //!   straight through it) and gets a `null` bsdf; Mitsuba 3 would make it diffuse.
 //!
-//! A 0.6 medium `material` preset (scattering tables) is refused with what to write.
+//! * 0.5's `<spectrum value="r, g, b"/>` (three values, no wavelengths) was the
+//!   spectrum's three samples, i.e. RGB in 0.5's RGB mode, and is read as `<rgb>`
+//!   (`rgb_spectrum`, called by the property reader in `load.rs`);
+//! * a medium `material` preset (0.6's table of measured media, `media_presets`)
+//!   becomes the σ_s, σ_a 0.6 rendered with (× 100, σ_s reduced by 1 − g), then σ_t and
+//!   albedo as above; the medium's `scale` (or 0.5's `density`) multiplies them as in 0.6.
 
 use glam::{DMat4, DVec3};
 
 use super::description::{Child, ObjId, Object, ObjectKind, Property, Value};
-use crate::error::{err_at, Result, SceneError};
+use crate::error::{err_at, Loc, Result, SceneError};
 
 /// Upgrades `obj` (just read from a file older than 2.0): Mitsuba 3's own rules, then the
 /// 0.6 meanings (a line each in `notes`, or an error when `strict`); shapes get
@@ -47,16 +52,6 @@ pub fn from_v1(obj: &mut Object, notes: &mut Vec<String>, strict: bool) -> Resul
     // ---- 0.6 meanings Mitsuba 3 does not carry over ----
     let mut convert = |obj: &Object, what: String| reading(obj, what, notes, strict);
     if obj.kind == ObjectKind::Medium && obj.plugin == "homogeneous" {
-        if let Some(p) = obj.props.iter().find(|p| p.name == "material") {
-            return Err(SceneError::at(
-                &p.loc,
-                format!(
-                    "{}: the Mitsuba 0.6 material presets (measured scattering tables) are not supported",
-                    obj.label()
-                ),
-            )
-            .with_hint("give sigmaS and sigmaA (or sigma_t and albedo) instead"));
-        }
         if let Some(i) = obj.props.iter().position(|p| p.name == "density") {
             if obj.props.iter().any(|p| p.name == "scale") {
                 return err_at(
@@ -67,7 +62,10 @@ pub fn from_v1(obj: &mut Object, notes: &mut Vec<String>, strict: bool) -> Resul
             obj.props[i].name = "scale".into();
             convert(obj, "density read as scale".into())?;
         }
-        if obj
+        if let Some(preset) = material_preset(obj)? {
+            let what = sigma_s_a_to_t_albedo(obj)?;
+            convert(obj, format!("{preset}: {what}"))?;
+        } else if obj
             .props
             .iter()
             .any(|p| p.name == "sigma_s" || p.name == "sigma_a")
@@ -77,6 +75,33 @@ pub fn from_v1(obj: &mut Object, notes: &mut Vec<String>, strict: bool) -> Resul
         }
     }
     Ok(())
+}
+
+/// 0.5's `<spectrum name value="r, g, b"/>` at `loc`: in 0.5's RGB mode a spectrum had
+/// three samples, so three values without wavelengths were an RGB colour; read as
+/// `<rgb>` with a note (an error under `strict`: Mitsuba 3 does not read it).
+pub fn rgb_spectrum(
+    loc: &Loc,
+    name: &str,
+    rgb: DVec3,
+    notes: &mut Vec<String>,
+    strict: bool,
+) -> Result<Value> {
+    let what = format!(
+        "<spectrum name=\"{name}\"> with three values and no wavelengths read as <rgb value=\"{}, {}, {}\"> (Mitsuba 0.5's RGB mode)",
+        rgb.x, rgb.y, rgb.z
+    );
+    if strict {
+        return Err(SceneError::at(
+            loc,
+            format!("a Mitsuba 0.5 form that Mitsuba 3 does not read (--strict-v3): {what}"),
+        )
+        .with_hint(
+            "without --strict-v3 mediareg reads it so; or write <rgb name=... value=\"r, g, b\"/>",
+        ));
+    }
+    notes.push(format!("{loc}: 0.5 file: {what}"));
+    Ok(Value::Rgb(rgb))
 }
 
 /// `uoffset`, `voffset`, `uscale`, `vscale` → `to_uv` = scale · translate, as Mitsuba 3.
@@ -116,6 +141,61 @@ fn uv_offsets_to_transform(obj: &mut Object) -> Result<()> {
         loc,
     });
     Ok(())
+}
+
+/// A 0.6 `material` preset on a homogeneous medium: replaced by the `sigma_s` and
+/// `sigma_a` 0.6 rendered with (a medium `g` property, which 0.6 used to reduce σ_s, is
+/// consumed); returns what was read, for the note. 0.6 refuses a preset together with
+/// explicit coefficients, and so does this.
+fn material_preset(obj: &mut Object) -> Result<Option<String>> {
+    use super::media_presets::{coefficients, find, names};
+    let Some(i) = obj.props.iter().position(|p| p.name == "material") else {
+        return Ok(None);
+    };
+    let p = &obj.props[i];
+    let Value::String(name) = &p.value else {
+        return err_at(&p.loc, "\"material\" must be a <string>");
+    };
+    let loc = p.loc.clone();
+    let Some(preset) = find(name) else {
+        return Err(SceneError::at(
+            &loc,
+            format!(
+                "{}: unknown Mitsuba 0.6 medium material \"{name}\"",
+                obj.label()
+            ),
+        )
+        .with_hint(format!("the presets are: {}", names())));
+    };
+    let manual = ["sigma_s", "sigma_a", "sigma_t", "albedo"];
+    if let Some(q) = obj.props.iter().find(|q| manual.contains(&q.name.as_str())) {
+        return err_at(
+            &q.loc,
+            format!(
+                "{}: give either the material preset \"{name}\" or scattering coefficients, not both (as Mitsuba 0.6)",
+                obj.label()
+            ),
+        );
+    }
+    let g = match obj.props.iter().find(|q| q.name == "g") {
+        Some(q) => Some(constant_rgb(q)?.to_array()),
+        None => None,
+    };
+    let (s, a) = coefficients(preset, g);
+    let what = format!(
+        "material \"{}\" (mm⁻¹ × 100, σ_s × (1 − g{}))",
+        preset.name,
+        if g.is_some() { " of the medium" } else { "" }
+    );
+    obj.props.retain(|q| q.name != "material" && q.name != "g");
+    for (n, v) in [("sigma_s", s), ("sigma_a", a)] {
+        obj.props.push(Property {
+            name: n.into(),
+            value: Value::Rgb(DVec3::from_array(v)),
+            loc: loc.clone(),
+        });
+    }
+    Ok(Some(what))
 }
 
 /// A constant colour property as RGB (float, rgb or constant spectrum).
