@@ -11,6 +11,7 @@ use mediareg::regularize::RegularizeError;
 use mediareg::report::mitsuba::MitsubaRunner;
 use mediareg::report::{Budget, TableOptions};
 use mediareg::scene::{MediumChoiceError, Scene};
+pub use mediareg::image::sibling;
 use mediareg::{image, load_scene, xml, BuildOverrides};
 
 /// What every command needs to load a scene.
@@ -192,12 +193,6 @@ pub fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
         eprintln!("warning: {w}");
     }
     Ok((scene, out_exr))
-}
-
-/// OUT.exr with `_suffix` added to its stem.
-pub fn sibling(out_exr: &Path, suffix: &str) -> PathBuf {
-    let stem = out_exr.file_stem().unwrap_or_default().to_string_lossy();
-    out_exr.with_file_name(format!("{stem}{suffix}.exr"))
 }
 
 /// The table's options from its arguments (also the base of `figures`).
