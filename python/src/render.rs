@@ -39,10 +39,14 @@ pub fn render<'py>(
         )));
     }
     if spp == Some(0) {
-        return Err(bad_arg("spp must be at least 1 (None: the sampler's sample_count)"));
+        return Err(bad_arg(
+            "spp must be at least 1 (None: the sampler's sample_count)",
+        ));
     }
     if medium.is_some() && gradient.is_none() {
-        return Err(bad_arg("medium= names the medium of gradient=\"albedo\"; pass both"));
+        return Err(bad_arg(
+            "medium= names the medium of gradient=\"albedo\"; pass both",
+        ));
     }
     let gradient = match gradient {
         None => Gradient::None,

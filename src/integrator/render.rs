@@ -154,7 +154,11 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         ProgressBar::hidden()
     };
 
-    let cancelled = || opts.cancel.as_ref().is_some_and(|c| c.load(Ordering::Relaxed));
+    let cancelled = || {
+        opts.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+    };
     let new_blocks = || -> Vec<(ImageBlock, Option<ImageBlock>)> {
         tiles
             .iter()

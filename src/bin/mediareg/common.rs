@@ -7,11 +7,11 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use glam::Vec3;
 
+pub use mediareg::image::sibling;
 use mediareg::regularize::RegularizeError;
 use mediareg::report::mitsuba::MitsubaRunner;
 use mediareg::report::{Budget, TableOptions};
 use mediareg::scene::{MediumChoiceError, Scene};
-pub use mediareg::image::sibling;
 use mediareg::{image, load_scene, xml, BuildOverrides};
 
 /// What every command needs to load a scene.

@@ -57,12 +57,11 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
     }
     let gradient = match gradient {
         None => Gradient::None,
-        Some(GradientArg::Albedo) => {
-            integrator::albedo_gradient(&scene_data, medium.as_deref()).map_err(|e| match e {
+        Some(GradientArg::Albedo) => integrator::albedo_gradient(&scene_data, medium.as_deref())
+            .map_err(|e| match e {
                 GradientError::NeedsVolpath => anyhow!("--gradient albedo: {e}"),
                 GradientError::Medium(m) => anyhow!("--gradient albedo: {:#}", medium_error(m)),
-            })?
-        }
+            })?,
     };
 
     let show = std::io::stderr().is_terminal();
