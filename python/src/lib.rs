@@ -4,6 +4,7 @@
 //! bit. `python/mediareg/__init__.py` documents the API users see.
 
 mod images;
+mod regularize;
 mod render;
 
 use std::path::PathBuf;
@@ -84,7 +85,7 @@ impl PyScene {
 }
 
 /// A scene parameter's value as the XML would spell it (`-D name=value`).
-fn param_text(value: &Bound<'_, PyAny>) -> PyResult<String> {
+pub(crate) fn param_text(value: &Bound<'_, PyAny>) -> PyResult<String> {
     if let Ok(b) = value.cast::<PyBool>() {
         return Ok(if b.is_true() { "true" } else { "false" }.into());
     }
@@ -130,6 +131,7 @@ fn _mediareg(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyScene>()?;
     m.add_function(wrap_pyfunction!(load_file, m)?)?;
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
+    m.add_function(wrap_pyfunction!(regularize::regularize, m)?)?;
     m.add_function(wrap_pyfunction!(images::write_exr, m)?)?;
     m.add_function(wrap_pyfunction!(images::read_exr, m)?)?;
     m.add_function(wrap_pyfunction!(images::merge, m)?)?;

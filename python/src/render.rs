@@ -63,16 +63,7 @@ pub fn render<'py>(
             )))
         }
     };
-    let pool = match threads {
-        None => None,
-        Some(0) => return Err(bad_arg("threads must be at least 1 (None: all cores)")),
-        Some(t) => Some(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(t)
-                .build()
-                .map_err(|e| error(e.into()))?,
-        ),
-    };
+    let pool = thread_pool(threads)?;
     // Mitsuba's mi.render(scene, seed=0, spp=0): the seed given, not the sampler's.
     let shot = data.shot.with(spp.unwrap_or(data.shot.spp), seed);
     let cancel = Arc::new(AtomicBool::new(false));
@@ -97,6 +88,19 @@ pub fn render<'py>(
     match rendered.gradient {
         Some(g) => Ok(PyTuple::new(py, [image, to_numpy(py, g)?.into_any()])?.into_any()),
         None => Ok(image),
+    }
+}
+
+/// A pool of `threads` render threads (None: rayon's global pool, all cores).
+pub(crate) fn thread_pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+    match threads {
+        None => Ok(None),
+        Some(0) => Err(bad_arg("threads must be at least 1 (None: all cores)")),
+        Some(t) => rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build()
+            .map(Some)
+            .map_err(|e| error(e.into())),
     }
 }
 

@@ -154,3 +154,50 @@ def test_ctrl_c_stops_a_render():
     assert p.returncode == 0 and "interrupted" in out, out
     # A million spp would take minutes; the render stopped at once.
     assert time.monotonic() - t < 10
+
+
+@pytest.mark.parametrize(
+    "flags, kwargs",
+    [
+        (["--factor", "0.8"], {"factor": 0.8}),
+        (
+            ["--predict", "paper", "--orbit", "1", "--no-spatial"],
+            {"predict": "paper", "orbit": 1.0, "spatial": False},
+        ),
+    ],
+)
+def test_regularize_equals_cli_bit_for_bit(cli, tmp_path, flags, kwargs):
+    out = tmp_path / "reg.exr"
+    common = ["-D", "res=24", "--spp", 4, "--seed", 2, "--frames", 3]
+    r = cli("regularize", scene("medium_cube"), *common, *flags, "--no-png", "-o", out)
+    assert r.returncode == 0, r.stderr
+    s = mediareg.load_file(scene("medium_cube"), res=24)
+    got = mediareg.regularize(s, spp=4, seed=2, frames=3, **kwargs)
+    for key, suffix in [
+        ("predicted", ""),
+        ("source", "_source"),
+        ("dalbedo_raw", "_dalbedo_raw"),
+        ("dalbedo", "_dalbedo"),
+    ]:
+        assert same_bits(got[key], mediareg.read_exr(tmp_path / f"reg{suffix}.exr")), key
+    assert got["frames"] == 3
+    if "factor" in kwargs:
+        source, target = np.array(got["albedo_source"]), np.array(got["albedo_target"])
+        np.testing.assert_allclose(source, kwargs["factor"] * target, rtol=1e-6)
+
+
+def test_regularize_bad_arguments():
+    cube = mediareg.load_file(scene("medium_cube"), res=8)
+    for kwargs, words in [
+        ({"predict": "cubic"}, "cubic"),
+        ({"factor": "half"}, "half"),
+        ({"c_beta": "big"}, "big"),
+        ({"orbit": 1.0, "dolly": 0.1}, "exclude"),
+        ({"target": (0, 0, 0)}, "orbit"),
+        ({"medium": "honey"}, "honey"),
+        ({"factor": 1.5}, "1.5"),
+    ]:
+        with pytest.raises(ValueError, match=words):
+            mediareg.regularize(cube, spp=1, frames=1, **kwargs)
+    with pytest.raises(ValueError, match="no medium"):
+        mediareg.regularize(mediareg.load_file(scene("cbox"), res=8), spp=1, factor=0.9)
