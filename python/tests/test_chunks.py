@@ -106,3 +106,35 @@ def test_ray_cluster_render_matches_a_single_render(local_ray, tmp_path):
     assert max(map(abs, z)) < Z_MAX, z
     with pytest.raises(mediareg.SceneError, match="no_such_param"):
         mediareg.cluster.render(scene("cbox"), spp=8, chunks=2, params={"no_such_param": 1})
+
+
+def test_ray_mitsuba_reference_equals_the_script(local_ray, tmp_path):
+    pytest.importorskip(
+        "mitsuba", reason="mitsuba is not installed in this venv (pip install mitsuba): opt-in"
+    )
+    import json
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    args = dict(spp=8, chunks=2, params={"res": 16}, variant="scalar_rgb")
+    r = mediareg.cluster.mitsuba_reference(
+        scene("cbox"), out=tmp_path / "ray", script=ROOT / "scripts/mitsuba_reference.py", **args
+    )
+    p = subprocess.run(
+        [sys.executable, "scripts/mitsuba_reference.py", str(scene("cbox")), "--spp", "8",
+         "--chunks", "2", "-D", "res=16", "--variant", "scalar_rgb", "--out", str(tmp_path / "script")],
+        cwd=ROOT, capture_output=True, text=True,
+    )
+    assert p.returncode == 0, p.stderr
+    mean = mediareg.read_exr(tmp_path / "script" / "cbox.exr")
+    var = mediareg.read_exr(tmp_path / "script" / "cbox_var.exr")
+    # The same chunks (seeds 1000, 1001), pooled in float32 files here and in float64
+    # by the script: equal to float32 rounding.
+    np.testing.assert_allclose(r["image"], mean, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(r["variance"], var, rtol=1e-3, atol=1e-9)
+    a = json.loads((tmp_path / "ray" / "cbox.json").read_text())
+    b = json.loads((tmp_path / "script" / "cbox.json").read_text())
+    for key in ["spp", "chunks", "seeds", "sha256", "variant", "params", "width", "height"]:
+        assert a[key] == b[key], key
