@@ -119,6 +119,61 @@ def set_variant(mi, variant=None):
     return variant
 
 
+def load_scenes(mi, scene, params, derivative=None, step=0.01, crop=None):
+    """The (weight, scene) pairs whose weighted renders make one chunk: the scene, or
+    with `derivative` the four of the finite-difference stencil (see the top). `crop`:
+    [X, Y, W, H] of the film. Shared with mediareg.cluster.mitsuba_reference (Ray)."""
+    if derivative is None:
+        scenes = [(1.0, mi.load_file(scene, **params))]
+    else:
+        v, h = float(params[derivative]), step
+        weights = [(dv, w / (6 * h)) for dv, w in [(h / 2, 8), (-h / 2, -8), (h, -1), (-h, 1)]]
+        scenes = [(w, mi.load_file(scene, **{**params, derivative: repr(v + dv)}))
+                  for dv, w in weights]
+    if crop:
+        for _, sc in scenes:
+            # The film's crop window is a scene parameter in Mitsuba 3.
+            p = mi.traverse(sc.sensors()[0])
+            p["film.crop_offset"] = mi.ScalarPoint2u(crop[0], crop[1])
+            p["film.crop_size"] = mi.ScalarVector2u(crop[2], crop[3])
+            p.update()
+    return scenes
+
+
+def render_chunk(mi, scenes, spp, seed):
+    """One chunk: the weighted sum of the scenes' renders at `spp` with `seed`, float64 RGB."""
+    import numpy as np
+    return sum(w * np.array(mi.render(sc, spp=spp, seed=seed), dtype=np.float64)[:, :, :3]
+               for w, sc in scenes)
+
+
+def provenance(version, variant, scene, chunks, spp_chunk, seeds, seconds, shape, params,
+               search, crop, hashes, derivative, step):
+    """NAME.json's content (see the top). Shared with mediareg.cluster.mitsuba_reference."""
+    return {
+        "scene": os.path.relpath(os.path.abspath(scene)),
+        "mitsuba_version": version,
+        "variant": variant,
+        "spp": chunks * spp_chunk,
+        "chunks": chunks,
+        "spp_per_chunk": spp_chunk,
+        "seeds": seeds,
+        "seconds": round(seconds, 3),
+        "samples_per_second": round(shape[0] * shape[1] * chunks * spp_chunk / seconds, 1),
+        "params": params,
+        "search": search,
+        "width": shape[1],
+        "height": shape[0],
+        **({"crop": crop} if crop else {}),
+        "sha256": hashes,
+        "made_by": "scripts/mitsuba_reference.py",
+        **({"derivative": {"param": derivative, "step": step,
+                           "scheme": "Richardson central differences, common random numbers"}}
+           if derivative else {}),
+        "date": datetime.date.today().isoformat(),
+    }
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scene")
@@ -152,27 +207,14 @@ def main():
         mi.file_resolver().append(os.path.abspath(d))
     # Before rendering: a missing asset should not cost a render.
     files = referenced_files(os.path.abspath(args.scene), search, dict(params))
-    if args.derivative is None:
-        scenes = [(1.0, mi.load_file(args.scene, **params))]
-    else:
-        if args.derivative not in params:
-            sys.exit(f"--derivative {args.derivative}: give its value with -D {args.derivative}=VALUE")
-        v, h = float(params[args.derivative]), args.step
-        weights = [(dv, w / (6 * h)) for dv, w in [(h / 2, 8), (-h / 2, -8), (h, -1), (-h, 1)]]
-        scenes = [(w, mi.load_file(args.scene, **{**params, args.derivative: repr(v + dv)}))
-                  for dv, w in weights]
-
+    if args.derivative is not None and args.derivative not in params:
+        sys.exit(f"--derivative {args.derivative}: give its value with -D {args.derivative}=VALUE")
     crop = None
     if args.crop:
         crop = [int(v) for v in args.crop.split(",")]
         if len(crop) != 4:
             sys.exit("--crop needs X,Y,W,H")
-        for _, sc in scenes:
-            # The film's crop window is a scene parameter in Mitsuba 3.
-            p = mi.traverse(sc.sensors()[0])
-            p["film.crop_offset"] = mi.ScalarPoint2u(crop[0], crop[1])
-            p["film.crop_size"] = mi.ScalarVector2u(crop[2], crop[3])
-            p.update()
+    scenes = load_scenes(mi, args.scene, params, args.derivative, args.step, crop)
 
     name = args.name or os.path.splitext(os.path.basename(args.scene))[0]
     if args.derivative and not args.name:
@@ -210,8 +252,7 @@ def main():
     t0 = time.time()
     for i in range(args.chunks):
         seed = first_seed + i
-        img = sum(w * np.array(mi.render(sc, spp=spp_chunk, seed=seed), dtype=np.float64)[:, :, :3]
-                  for w, sc in scenes)
+        img = render_chunk(mi, scenes, spp_chunk, seed)
         # Welford's update: exact pooling, one chunk at a time.
         n += 1
         if mean is None:
@@ -227,28 +268,9 @@ def main():
         seconds = seconds_before + time.time() - t0
         write("", mean)
         write("_var", m2 / (n - 1) / n)
-        meta = {
-            "scene": os.path.relpath(os.path.abspath(args.scene)),
-            "mitsuba_version": mi.__version__,
-            "variant": variant,
-            "spp": n * spp_chunk,
-            "chunks": n,
-            "spp_per_chunk": spp_chunk,
-            "seeds": seeds,
-            "seconds": round(seconds, 3),
-            "samples_per_second": round(mean.shape[0] * mean.shape[1] * n * spp_chunk / seconds, 1),
-            "params": params,
-            "search": args.search,
-            "width": mean.shape[1],
-            "height": mean.shape[0],
-            **({"crop": crop} if crop else {}),
-            "sha256": hashes,
-            "made_by": "scripts/mitsuba_reference.py",
-            **({"derivative": {"param": args.derivative, "step": args.step,
-                               "scheme": "Richardson central differences, common random numbers"}}
-               if args.derivative else {}),
-            "date": datetime.date.today().isoformat(),
-        }
+        meta = provenance(mi.__version__, variant, args.scene, n, spp_chunk, seeds, seconds,
+                          mean.shape, params, args.search, crop, hashes, args.derivative,
+                          args.step)
         with open(out + ".json.tmp", "w") as f:
             json.dump(meta, f, indent=2)
             f.write("\n")

@@ -77,6 +77,19 @@ fn to_image(width: usize, height: usize, px: impl Iterator<Item = [f64; 3]>) -> 
     }
 }
 
+/// Writes a merge: `out` (the mean, its header's spp the chunks' total) and, with two
+/// chunks or more, `out`_var.exr (the variance of the mean). Returns the files written.
+pub fn write_merged(out: &Path, merged: &Merged) -> Result<Vec<PathBuf>> {
+    super::write_render_exr(out, &merged.mean, Some(merged.spp))?;
+    let mut written = vec![out.to_path_buf()];
+    if let Some(var) = &merged.var {
+        let out_var = super::sibling(out, "_var");
+        super::write_render_exr(&out_var, var, Some(merged.spp))?;
+        written.push(out_var);
+    }
+    Ok(written)
+}
+
 /// Reads chunk EXRs written by `mediareg render` (their header's `spp` says how many
 /// samples each holds) and merges them. Each file must have the first's size, an spp,
 /// and only finite values.

@@ -83,6 +83,24 @@ pub fn write_exr_with(path: &Path, img: &Image, attributes: &[(&str, i32)]) -> R
     commit(&tmp, path)
 }
 
+/// Writes a render's EXR: [`write_exr_with`] with the samples per pixel it holds in
+/// the header's `spp` (what `merge` weights it by); `None` writes no attribute. The
+/// CLI and the Python module write every render through this, so equal images give
+/// equal files. One attribute only: exr keeps them in a HashMap, whose order (and so
+/// the file's bytes) would change from run to run.
+pub fn write_render_exr(path: &Path, img: &Image, spp: Option<u64>) -> Result<()> {
+    match spp {
+        Some(n) => write_exr_with(path, img, &[("spp", i32::try_from(n).unwrap_or(i32::MAX))]),
+        None => write_exr(path, img),
+    }
+}
+
+/// OUT.exr with `_suffix` added to its stem (OUT_dalbedo.exr, OUT_var.exr).
+pub fn sibling(out_exr: &Path, suffix: &str) -> PathBuf {
+    let stem = out_exr.file_stem().unwrap_or_default().to_string_lossy();
+    out_exr.with_file_name(format!("{stem}{suffix}.exr"))
+}
+
 /// An integer attribute of an EXR's header, if present.
 pub fn read_exr_int_attribute(path: &Path, name: &str) -> Result<Option<i32>> {
     use exr::meta::attribute::AttributeValue;

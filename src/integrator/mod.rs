@@ -3,8 +3,10 @@
 
 pub mod direct;
 pub mod emitters;
+pub mod gradient;
 pub mod path;
 pub mod render;
 pub mod volpath;
 
+pub use gradient::{albedo_gradient, GradientError};
 pub use render::{render, RenderOptions, RenderStats, Rendered};

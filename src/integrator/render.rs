@@ -7,6 +7,7 @@
 //! seed gives the bit-identical image at any thread count.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -54,9 +55,10 @@ pub struct RenderOptions {
     /// Per medium, the albedo to render with instead of the scene's (the paper's method
     /// renders at a lower albedo); None renders the scene's.
     pub albedo: Option<Vec<Vec3>>,
-    /// Set (e.g. by a Ctrl-C handler) to stop: the pass under way is dropped and the
-    /// image of the passes completed is returned.
-    pub cancel: Option<&'static AtomicBool>,
+    /// Set (e.g. by a Ctrl-C handler, or the Python module's signal check) to stop:
+    /// the pass under way is dropped and the image of the passes completed is returned.
+    /// Shared, so each caller (one Python thread's render) can have its own.
+    pub cancel: Option<Arc<AtomicBool>>,
 }
 
 impl RenderOptions {
@@ -152,7 +154,11 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         ProgressBar::hidden()
     };
 
-    let cancelled = || opts.cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+    let cancelled = || {
+        opts.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+    };
     let new_blocks = || -> Vec<(ImageBlock, Option<ImageBlock>)> {
         tiles
             .iter()

@@ -5,9 +5,11 @@
 //!
 //! `pipeline` runs the whole method; the steps are `sequence` (camera paths),
 //! `reproject` and `temporal` (Eq. 9–10), `spatial` (a still-image denoiser), `predict`
-//! (Eq. 11–12), `fit` (c_β without a reference) and `pilot` (the source factor without a
-//! reference, for the difference predictor).
+//! (Eq. 11–12), `fit` (c_β without a reference), `pilot` (the source factor without a
+//! reference, for the difference predictor) and `choices` (the options from a caller's
+//! choices, shared by the CLI and the Python module).
 
+pub mod choices;
 pub mod fit;
 pub mod pilot;
 pub mod pipeline;
@@ -17,4 +19,5 @@ pub mod sequence;
 pub mod spatial;
 pub mod temporal;
 
+pub use choices::{ChoiceError, Choices, Factor, Motion};
 pub use pipeline::{regularize, CBeta, Method, Options, RegularizeError, Regularized, Reproject};

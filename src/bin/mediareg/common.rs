@@ -7,6 +7,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use glam::Vec3;
 
+pub use mediareg::image::sibling;
 use mediareg::regularize::RegularizeError;
 use mediareg::report::mitsuba::MitsubaRunner;
 use mediareg::report::{Budget, TableOptions};
@@ -202,12 +203,6 @@ pub fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
         eprintln!("warning: {w}");
     }
     Ok((scene, out_exr))
-}
-
-/// OUT.exr with `_suffix` added to its stem.
-pub fn sibling(out_exr: &Path, suffix: &str) -> PathBuf {
-    let stem = out_exr.file_stem().unwrap_or_default().to_string_lossy();
-    out_exr.with_file_name(format!("{stem}{suffix}.exr"))
 }
 
 /// The table's options from its arguments (also the base of `figures`).

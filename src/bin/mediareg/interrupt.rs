@@ -1,12 +1,13 @@
 //! Ctrl-C during `render`: the first asks the render to stop and write what it has.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, LazyLock};
 
 use anyhow::{Context, Result};
 
 /// Set by the first Ctrl-C during `render`: the render stops after dropping the pass
 /// under way, and the image of the passes completed is written.
-pub static INTERRUPT: AtomicBool = AtomicBool::new(false);
+pub static INTERRUPT: LazyLock<Arc<AtomicBool>> = LazyLock::new(Arc::default);
 
 /// The conventional exit status of a process ended by SIGINT (128 + 2).
 pub const EXIT_INTERRUPTED: u8 = 130;

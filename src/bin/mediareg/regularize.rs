@@ -8,9 +8,8 @@ use clap::Args;
 
 use mediareg::image::{self, Image};
 use mediareg::regularize::pipeline::PilotSize;
-use mediareg::regularize::sequence::{image_centre_point, CameraPath};
-use mediareg::regularize::spatial::BilateralParams;
-use mediareg::regularize::{self, CBeta, Method, Reproject};
+use mediareg::regularize::sequence::CameraPath;
+use mediareg::regularize::{self, ChoiceError, Choices, Factor, Method, Motion, Reproject};
 
 use crate::common::{
     fmt3, medium_error, parse_point, prepare, regularize_error, sibling, warn_invalid_samples,
@@ -121,94 +120,68 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
         pilot_spp,
     } = cmd;
     let (scene_data, out_exr) = prepare(&args)?;
-    let medium = scene_data
-        .medium_index(medium.as_deref())
-        .map_err(medium_error)?;
-    let c_beta = if c_beta == "fit" {
-        CBeta::Fit {
-            spp: fit_spp,
-            at: fit_at,
-        }
-    } else {
-        CBeta::Fixed(
-            c_beta
-                .parse::<f32>()
-                .ok()
-                .filter(|c| c.is_finite())
-                .ok_or_else(|| anyhow!("--c-beta {c_beta}: expected a number or `fit`"))?,
-        )
-    };
+    let c_beta = regularize::choices::parse_c_beta(&c_beta, fit_spp, fit_at)
+        .ok_or_else(|| anyhow!("--c-beta {c_beta}: expected a number or `fit`"))?;
     let method = match predict {
         PredictArg::Paper => Method::Paper(c_beta),
         PredictArg::Linear => Method::Linear,
         PredictArg::Loglinear => Method::LogLinear,
         PredictArg::Difference => Method::Difference,
     };
-    // The target frame: the file's shot, or the camera path's last transform.
-    let mut shot = scene_data.shot.clone();
-    let path = match (orbit, dolly, camera_path) {
-        (Some(degrees), _, _) => {
-            let target = match target {
-                Some(t) => parse_point(&t)?,
-                None => image_centre_point(&scene_data, &scene_data.shot).ok_or_else(|| anyhow!("--orbit: the image centre sees no surface; give the orbit's centre with --target x,y,z"))?,
-            };
-            CameraPath::Orbit {
-                degrees_per_frame: degrees,
-                target,
-            }
-        }
-        (_, Some(distance), _) => CameraPath::Dolly {
-            distance_per_frame: distance,
+    let motion = match (orbit, dolly, camera_path) {
+        (Some(degrees), _, _) => Motion::Orbit {
+            degrees,
+            target: target.as_deref().map(parse_point).transpose()?,
         },
-        (_, _, Some(file)) => {
-            let p = CameraPath::read(&file).map_err(|e| anyhow!("{e}"))?;
-            // The file's last transform is the target frame.
-            if let CameraPath::Transforms(list) = &p {
-                shot.camera.to_world = *list.last().expect("not empty");
-            }
-            p
-        }
-        _ => CameraPath::Static,
+        (_, Some(distance), _) => Motion::Dolly(distance),
+        (_, _, Some(file)) => Motion::Path(CameraPath::read(&file).map_err(|e| anyhow!("{e}"))?),
+        _ => Motion::Static,
     };
-    if frames > 1 && path == CameraPath::Static {
+    if frames > 1 && motion == Motion::Static {
         eprintln!(
             "note: no --orbit, --dolly or --camera-path: the {frames} frames share the sensor and differ only in their noise"
         );
     }
-    // `auto` (the default with the difference predictor) leaves the factor to the
-    // pilot; the factor given is then unused.
-    let pilot = PilotSize {
-        chunks: pilot_renders,
-        spp: pilot_spp,
-    };
-    let (factor, auto_factor) = match factor.as_deref() {
-        Some("auto") => (0.95, Some(pilot)),
-        Some(f) => (
+    let factor = match factor.as_deref() {
+        None => None,
+        Some("auto") => Some(Factor::Auto),
+        Some(f) => Some(Factor::Fixed(
             f.parse::<f32>()
                 .ok()
                 .filter(|f| f.is_finite())
                 .ok_or_else(|| anyhow!("--factor {f}: expected a number or `auto`"))?,
-            None,
-        ),
-        None => (0.95, (method == Method::Difference).then_some(pilot)),
+        )),
     };
-    let opts = regularize::Options {
+    let choices = Choices {
         medium,
+        method,
         factor,
+        pilot: PilotSize {
+            chunks: pilot_renders,
+            spp: pilot_spp,
+        },
         frames,
         w_a: wa,
-        path,
         reproject: match reproject {
             ReprojectArg::Exact => Reproject::Exact,
             ReprojectArg::Shift => Reproject::Shift,
             ReprojectArg::None => Reproject::None,
         },
-        spatial: (spatial || (method == Method::Difference && !no_spatial))
-            .then(BilateralParams::default),
-        auto_factor,
-        method,
+        motion,
+        spatial: match (spatial, no_spatial) {
+            (true, _) => Some(true),
+            (_, true) => Some(false),
+            _ => None,
+        },
         show_progress: std::io::stderr().is_terminal(),
     };
+    let (opts, shot) = regularize::choices::options(&scene_data, &scene_data.shot, &choices)
+        .map_err(|e| match e {
+            ChoiceError::Medium(m) => medium_error(m),
+            ChoiceError::NoOrbitCentre => {
+                anyhow!("--orbit: {e}; give the orbit's centre with --target x,y,z")
+            }
+        })?;
     let r = regularize::regularize(&scene_data, &shot, &opts).map_err(regularize_error)?;
 
     let outputs: [(PathBuf, &Image, bool); 4] = [

@@ -2,14 +2,15 @@
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 
 use mediareg::image;
-use mediareg::integrator::{self, volpath::Gradient};
+use mediareg::integrator::{self, volpath::Gradient, GradientError};
 use mediareg::scene::ray_log::{self, RayLog};
-use mediareg::scene::{IntegratorKind, Scene};
+use mediareg::scene::Scene;
 
 use crate::common::{medium_error, prepare, sibling, warn_invalid_samples, SceneArgs};
 use crate::interrupt::{install_handler, INTERRUPT};
@@ -56,16 +57,11 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
     }
     let gradient = match gradient {
         None => Gradient::None,
-        Some(GradientArg::Albedo) => {
-            if scene_data.integrator.kind != IntegratorKind::Volpath {
-                bail!("--gradient albedo needs the volpath integrator (the scene's integrator ignores media)");
-            }
-            Gradient::Albedo(
-                scene_data
-                    .medium_index(medium.as_deref())
-                    .map_err(|e| anyhow!("--gradient albedo: {:#}", medium_error(e)))?,
-            )
-        }
+        Some(GradientArg::Albedo) => integrator::albedo_gradient(&scene_data, medium.as_deref())
+            .map_err(|e| match e {
+                GradientError::NeedsVolpath => anyhow!("--gradient albedo: {e}"),
+                GradientError::Medium(m) => anyhow!("--gradient albedo: {:#}", medium_error(m)),
+            })?,
     };
 
     let show = std::io::stderr().is_terminal();
@@ -76,7 +72,7 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         &integrator::RenderOptions {
             show_progress: show,
             gradient,
-            cancel: Some(&INTERRUPT),
+            cancel: Some(Arc::clone(&INTERRUPT)),
             ..Default::default()
         },
     );
@@ -94,14 +90,12 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         );
     }
     // The spp reached (less than asked for when interrupted), in the EXR header.
-    // One attribute only: exr keeps them in a HashMap, whose order (and so the
-    // file's bytes) would change from run to run.
-    let attributes = [("spp", stats.spp as i32)];
-    image::write_exr_with(&out_exr, img, &attributes)?;
+    let spp = Some(u64::from(stats.spp));
+    image::write_render_exr(&out_exr, img, spp)?;
     let mut written = vec![out_exr.display().to_string()];
     if let Some(g) = &rendered.gradient {
         let out_grad = sibling(&out_exr, "_dalbedo");
-        image::write_exr_with(&out_grad, g, &attributes)?;
+        image::write_render_exr(&out_grad, g, spp)?;
         written.push(out_grad.display().to_string());
     }
     if !args.no_png {

@@ -1,0 +1,119 @@
+"""mediareg from Python: Mitsuba 3 scene files rendered into numpy arrays.
+
+    import mediareg
+    scene = mediareg.load_file("mitsuba_scenes/cbox.xml")
+    image = mediareg.render(scene, spp=64)        # float32 (H, W, 3), linear RGB
+    mediareg.write_exr("cbox.exr", image, spp=64)
+
+The functions are the library's, the ones the ``mediareg`` command line runs: the same
+scene, spp and seed give the same image, bit for bit. See docs/python.md.
+"""
+
+import warnings as _warnings
+
+import numpy as _np
+
+from . import _mediareg
+from ._mediareg import Error, Scene, SceneError
+
+__all__ = [
+    "Error",
+    "Scene",
+    "SceneError",
+    "load_file",
+    "merge",
+    "read_exr",
+    "regularize",
+    "render",
+    "write_exr",
+]
+
+
+def load_file(path, search_path=None, strict_v3=False, **params):
+    """Loads a Mitsuba 3 scene file (Mitsuba's ``mi.load_file``).
+
+    ``params`` set the scene's parameters (``$name``), as ``-D name=value`` does: they
+    override ``<default>``, and one the scene never uses is an error. ``search_path``:
+    folders searched for meshes and includes after the scene's own (the CLI's ``-a``).
+    ``strict_v3``: refuse the Mitsuba 0.6 readings (the CLI's ``--strict-v3``).
+
+    Raises SceneError with the CLI's ``file:line:col: message``. The loader's warnings
+    are issued as Python warnings (and kept in ``scene.warnings``).
+    """
+    if isinstance(search_path, (str, bytes)) or hasattr(search_path, "__fspath__"):
+        search_path = [search_path]
+    scene = _mediareg.load_file(
+        str(path),
+        search_path=None if search_path is None else [str(p) for p in search_path],
+        strict_v3=strict_v3,
+        **params,
+    )
+    for w in scene.warnings:
+        _warnings.warn(w, stacklevel=2)
+    return scene
+
+
+def render(scene, spp=None, seed=0, sensor=0, threads=None, gradient=None, medium=None):
+    """Renders ``scene`` (Mitsuba's ``mi.render``): a float32 array (H, W, 3).
+
+    ``spp``: samples per pixel (None: the sampler's sample_count); ``seed``: as Mitsuba,
+    the seed given (0 by default), not the sampler's; ``sensor``: 0 only (the scene's
+    first); ``threads``: render threads (None: all cores); the image is the same at any
+    count. ``gradient="albedo"`` also estimates d(radiance_c)/d(albedo_c) of one medium
+    (``medium``: its XML id, needed when the scene has several) in the same paths, and
+    returns ``(image, dalbedo)``. The GIL is released; Ctrl-C stops the render and
+    raises KeyboardInterrupt.
+    """
+    return _mediareg.render(
+        scene,
+        spp=spp,
+        seed=seed,
+        sensor=sensor,
+        threads=threads,
+        gradient=gradient,
+        medium=medium,
+    )
+
+
+def regularize(scene, spp=None, seed=0, threads=None, medium=None, predict="difference",
+               factor=None, pilot_renders=8, pilot_spp=1, c_beta=0.5, fit_spp=4, fit_at=1.0,
+               frames=11, wa=0.1, reproject="exact", orbit=None, target=None, dolly=None,
+               camera_path=None, spatial=None):
+    """The paper's method, as ``mediareg regularize`` with the same options (keywords
+    named after its flags; ``factor``: a number or "auto", None the CLI's default;
+    ``c_beta``: a number or "fit"; ``target``: the orbit's centre (x, y, z); ``spatial``:
+    True/False, None the predictor's default). Returns a dict of float32 (H, W, 3)
+    arrays ``predicted``, ``source``, ``dalbedo_raw``, ``dalbedo`` (the CLI's OUT.exr,
+    OUT_source.exr, OUT_dalbedo_raw.exr, OUT_dalbedo.exr) and ``albedo_source``,
+    ``albedo_target``, ``factor`` (the pilot's, per channel, or None), ``c_beta``,
+    ``frames``. The GIL is released; Ctrl-C is seen only when it returns."""
+    return _mediareg.regularize(
+        scene, spp=spp, seed=seed, threads=threads, medium=medium, predict=predict,
+        factor=factor, pilot_renders=pilot_renders, pilot_spp=pilot_spp, c_beta=c_beta,
+        fit_spp=fit_spp, fit_at=fit_at, frames=frames, wa=wa, reproject=reproject,
+        orbit=orbit, target=None if target is None else tuple(target), dolly=dolly,
+        camera_path=None if camera_path is None else str(camera_path), spatial=spatial,
+    )
+
+
+def write_exr(path, array, spp=None):
+    """Writes an (H, W, 3) array as a linear float32 RGB EXR, as ``mediareg render``
+    writes it (``spp`` in the header when given: ``merge`` weights chunks by it). The
+    file is written under a temporary name and renamed: an error leaves no file."""
+    array = _np.ascontiguousarray(array, dtype=_np.float32)
+    if array.ndim != 3:
+        raise ValueError(f"the array's shape is {array.shape}; expected (H, W, 3): RGB")
+    _mediareg.write_exr(str(path), array, spp)
+
+
+def read_exr(path):
+    """Reads an EXR's RGB channels: a float32 array (H, W, 3)."""
+    return _mediareg.read_exr(str(path))
+
+
+def merge(paths, out=None):
+    """Merges renders of one shot made in chunks (distinct seeds), as ``mediareg merge``:
+    weighted by the spp in each file's header. Returns a dict with ``image`` (the mean),
+    ``variance`` (of the mean, per pixel and channel; None for one chunk), ``spp`` and
+    ``chunks``; with ``out``, also writes OUT.exr and OUT_var.exr."""
+    return _mediareg.merge([str(p) for p in paths], None if out is None else str(out))

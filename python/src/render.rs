@@ -1,0 +1,151 @@
+//! `render`: the library's render driver (what `mediareg render` runs) without the GIL,
+//! on a thread of its own so that the caller's thread can watch for Ctrl-C.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Duration;
+
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+
+use mediareg::integrator::{self, volpath::Gradient, GradientError, RenderOptions};
+use mediareg::scene::MediumChoiceError;
+
+use crate::images::to_numpy;
+use crate::{bad_arg, error, PyScene};
+
+/// How often the caller's thread looks for signals (Ctrl-C) while a render runs.
+const SIGNAL_CHECK: Duration = Duration::from_millis(100);
+
+/// render(scene, spp=None, seed=0, sensor=0, threads=None, gradient=None, medium=None)
+#[pyfunction]
+#[pyo3(signature = (scene, spp=None, seed=0, sensor=0, threads=None, gradient=None, medium=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn render<'py>(
+    py: Python<'py>,
+    scene: &Bound<'py, PyScene>,
+    spp: Option<u32>,
+    seed: u64,
+    sensor: usize,
+    threads: Option<usize>,
+    gradient: Option<&str>,
+    medium: Option<&str>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let data = Arc::clone(&scene.get().inner);
+    if sensor != 0 {
+        return Err(bad_arg(format!(
+            "sensor={sensor}: mediareg renders a scene's first sensor only (sensor=0)"
+        )));
+    }
+    if spp == Some(0) {
+        return Err(bad_arg(
+            "spp must be at least 1 (None: the sampler's sample_count)",
+        ));
+    }
+    if medium.is_some() && gradient.is_none() {
+        return Err(bad_arg(
+            "medium= names the medium of gradient=\"albedo\"; pass both",
+        ));
+    }
+    let gradient = match gradient {
+        None => Gradient::None,
+        Some("albedo") => integrator::albedo_gradient(&data, medium).map_err(|e| {
+            let hint = match &e {
+                GradientError::Medium(MediumChoiceError::Several { .. }) => " (medium=ID)",
+                _ => "",
+            };
+            bad_arg(format!("gradient=\"albedo\": {e}{hint}"))
+        })?,
+        Some(g) => {
+            return Err(bad_arg(format!(
+                "gradient=\"{g}\": the derivatives mediareg renders: \"albedo\""
+            )))
+        }
+    };
+    let pool = thread_pool(threads)?;
+    // Mitsuba's mi.render(scene, seed=0, spp=0): the seed given, not the sampler's.
+    let shot = data.shot.with(spp.unwrap_or(data.shot.spp), seed);
+    let cancel = Arc::new(AtomicBool::new(false));
+    let opts = RenderOptions {
+        gradient,
+        cancel: Some(Arc::clone(&cancel)),
+        ..Default::default()
+    };
+    let rendered = interruptible(py, &cancel, move || {
+        let run = || integrator::render(&data, &shot, &opts);
+        match pool {
+            Some(p) => p.install(run),
+            None => run(),
+        }
+    })?;
+    if rendered.stats.interrupted {
+        // Cancelled without a signal of this thread's (cannot happen now: the flag is
+        // this render's own); never hand back a partial image as if complete.
+        return Err(crate::Error::new_err("the render was interrupted"));
+    }
+    let image = to_numpy(py, rendered.image)?.into_any();
+    match rendered.gradient {
+        Some(g) => Ok(PyTuple::new(py, [image, to_numpy(py, g)?.into_any()])?.into_any()),
+        None => Ok(image),
+    }
+}
+
+/// A pool of `threads` render threads (None: rayon's global pool, all cores).
+pub(crate) fn thread_pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+    match threads {
+        None => Ok(None),
+        Some(0) => Err(bad_arg("threads must be at least 1 (None: all cores)")),
+        Some(t) => rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build()
+            .map(Some)
+            .map_err(|e| error(e.into())),
+    }
+}
+
+/// Runs `work` on a thread of its own while this one, without the GIL, wakes every
+/// `SIGNAL_CHECK` to run Python's signal handlers (on the main thread: Ctrl-C raises
+/// KeyboardInterrupt there). A handler's exception sets `cancel` (the render drops the
+/// pass under way), waits for the thread, and is raised.
+fn interruptible<T: Send>(
+    py: Python<'_>,
+    cancel: &AtomicBool,
+    work: impl FnOnce() -> T + Send,
+) -> PyResult<T> {
+    let done = (Mutex::new(false), Condvar::new());
+    std::thread::scope(|s| {
+        let handle = s.spawn(|| {
+            // Marks the work done even if it panics (the join below reports it).
+            struct Done<'a>(&'a (Mutex<bool>, Condvar));
+            impl Drop for Done<'_> {
+                fn drop(&mut self) {
+                    *self.0 .0.lock().unwrap_or_else(|e| e.into_inner()) = true;
+                    self.0 .1.notify_all();
+                }
+            }
+            let _done = Done(&done);
+            work()
+        });
+        loop {
+            let finished = py.detach(|| {
+                let guard = done.0.lock().unwrap_or_else(|e| e.into_inner());
+                let (guard, _) = done
+                    .1
+                    .wait_timeout_while(guard, SIGNAL_CHECK, |d| !*d)
+                    .unwrap_or_else(|e| e.into_inner());
+                *guard
+            });
+            if finished {
+                break;
+            }
+            if let Err(e) = py.check_signals() {
+                cancel.store(true, Ordering::SeqCst);
+                let _ = py.detach(|| handle.join());
+                return Err(e);
+            }
+        }
+        py.detach(|| handle.join())
+            .map_err(|_| PyRuntimeError::new_err("the render panicked (a bug in mediareg)"))
+    })
+}

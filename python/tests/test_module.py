@@ -1,0 +1,203 @@
+"""The Python module against the command line: the same scene, spp and seed give the
+same image bit for bit (and the same EXR file), the gradient likewise; bad input raises
+the CLI's message and writes nothing; Ctrl-C stops a render."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+import mediareg
+from conftest import ROOT, scene
+
+
+def same_bits(a, b):
+    return a.shape == b.shape and np.array_equal(a.view(np.uint32), b.view(np.uint32))
+
+
+def test_render_equals_cli_bit_for_bit(cli, tmp_path):
+    out = tmp_path / "cli.exr"
+    r = cli("render", scene("cbox"), "--spp", 16, "--seed", 3, "--no-png", "-o", out)
+    assert r.returncode == 0, r.stderr
+    s = mediareg.load_file(scene("cbox"))
+    img = mediareg.render(s, spp=16, seed=3)
+    assert img.dtype == np.float32 and img.shape == (64, 64, 3)
+    assert same_bits(img, mediareg.read_exr(out))
+    # The same at another thread count, and written as the CLI writes it.
+    assert same_bits(img, mediareg.render(s, spp=16, seed=3, threads=1))
+    mediareg.write_exr(tmp_path / "py.exr", img, spp=16)
+    assert (tmp_path / "py.exr").read_bytes() == out.read_bytes()
+    # Another seed gives another image (the comparison can fail).
+    assert not same_bits(img, mediareg.render(s, spp=16, seed=4))
+
+
+def test_params_and_defaults_equal_cli(cli, tmp_path):
+    out = tmp_path / "cli.exr"
+    r = cli(
+        "render", scene("cbox"), "-D", "res=24", "-D", "wall_reflectance=0.5",
+        "--seed", 0, "--no-png", "-o", out,
+    )
+    assert r.returncode == 0, r.stderr
+    s = mediareg.load_file(scene("cbox"), res=24, wall_reflectance=0.5)
+    assert (s.width, s.height, s.spp) == (24, 24, 64)
+    assert same_bits(mediareg.render(s), mediareg.read_exr(out))
+
+
+def test_gradient_equals_cli_bit_for_bit(cli, tmp_path):
+    out = tmp_path / "cube.exr"
+    args = ["-D", "res=32", "--spp", 8, "--seed", 1, "--gradient", "albedo"]
+    r = cli("render", scene("medium_cube"), *args, "--no-png", "-o", out)
+    assert r.returncode == 0, r.stderr
+    s = mediareg.load_file(scene("medium_cube"), res=32)
+    img, grad = mediareg.render(s, spp=8, seed=1, gradient="albedo")
+    assert same_bits(img, mediareg.read_exr(out))
+    assert same_bits(grad, mediareg.read_exr(tmp_path / "cube_dalbedo.exr"))
+    assert np.abs(grad).max() > 0
+    # The radiance is the plain render's: the derivative rides the same paths.
+    assert same_bits(img, mediareg.render(s, spp=8, seed=1))
+
+
+def cli_error(cli, *args):
+    r = cli(*args)
+    assert r.returncode != 0
+    assert r.stderr.startswith("error: "), r.stderr
+    return r.stderr[len("error: "):].rstrip("\n")
+
+
+@pytest.mark.parametrize(
+    "name, params",
+    [
+        ("tests/bad_input/cyclic_include_a.xml", {}),
+        ("mitsuba_scenes/cbox.xml", {"no_such_param": 1}),
+        ("mitsuba_scenes/cbox.xml", {"res": "wide"}),
+    ],
+)
+def test_bad_scene_raises_the_cli_message(cli, tmp_path, name, params):
+    path = ROOT / name
+    defines = [a for k, v in params.items() for a in ("-D", f"{k}={v}")]
+    out = tmp_path / "out.exr"
+    expected = cli_error(cli, "render", path, *defines, "--no-png", "-o", out)
+    with pytest.raises(mediareg.SceneError) as e:
+        mediareg.load_file(path, **params)
+    assert str(e.value) == expected
+    # It starts with the file at fault (the included one for a cyclic include).
+    assert str(e.value).startswith(str(path.parent)), str(e.value)
+    assert ".xml" in str(e.value).split(": ")[0], str(e.value)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_scene_message_names_file_line_col():
+    with pytest.raises(mediareg.SceneError) as e:
+        mediareg.load_file(scene("cbox"), res="wide")
+    # file:line:col of the width's <integer>, as a compiler would print it.
+    assert f"{scene('cbox')}:24:" in str(e.value), str(e.value)
+
+
+def test_bad_arguments_raise_and_write_nothing(tmp_path):
+    s = mediareg.load_file(scene("cbox"), res=8)
+    for kwargs, words in [
+        ({"sensor": 1}, "sensor=1"),
+        ({"spp": 0}, "spp"),
+        ({"threads": 0}, "threads"),
+        ({"gradient": "albedo"}, "volpath"),
+        ({"gradient": "sigma_t"}, "sigma_t"),
+    ]:
+        with pytest.raises(ValueError, match=words):
+            mediareg.render(s, **kwargs)
+    cube = mediareg.load_file(scene("medium_cube"), res=8)
+    with pytest.raises(ValueError, match="honey"):
+        mediareg.render(cube, gradient="albedo", medium="honey")
+    bad = np.full((4, 4, 3), 0.5, np.float32)
+    bad[1, 2, 0] = np.nan
+    with pytest.raises(mediareg.Error, match="NaN"):
+        mediareg.write_exr(tmp_path / "nan.exr", bad)
+    with pytest.raises(ValueError, match=r"\(H, W, 3\)"):
+        mediareg.write_exr(tmp_path / "rgba.exr", np.zeros((4, 4, 4), np.float32))
+    with pytest.raises(ValueError, match=".exr"):
+        mediareg.write_exr(tmp_path / "image.png", np.zeros((4, 4, 3), np.float32))
+    with pytest.raises(mediareg.Error, match="cannot"):
+        mediareg.write_exr(tmp_path / "missing" / "a.exr", np.zeros((4, 4, 3), np.float32))
+    with pytest.raises(mediareg.Error, match="spp"):
+        mediareg.write_exr(tmp_path / "no_spp.exr", np.zeros((2, 2, 3), np.float32))
+        mediareg.merge([tmp_path / "no_spp.exr"], out=tmp_path / "merged.exr")
+    # Nothing but the one good file, no temporary left behind.
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["no_spp.exr"]
+
+
+def test_ctrl_c_stops_a_render():
+    code = textwrap.dedent(
+        f"""
+        import sys, time, mediareg
+        s = mediareg.load_file({str(scene('cbox'))!r})
+        print("rendering", flush=True)
+        try:
+            mediareg.render(s, spp=1_000_000)
+        except KeyboardInterrupt:
+            print("interrupted", flush=True)
+            sys.exit(0)
+        sys.exit(1)
+        """
+    )
+    p = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, text=True
+    )
+    assert p.stdout.readline().strip() == "rendering"
+    time.sleep(1.0)
+    t = time.monotonic()
+    p.send_signal(signal.SIGINT)
+    out, _ = p.communicate(timeout=60)
+    assert p.returncode == 0 and "interrupted" in out, out
+    # A million spp would take minutes; the render stopped at once.
+    assert time.monotonic() - t < 10
+
+
+@pytest.mark.parametrize(
+    "flags, kwargs",
+    [
+        (["--factor", "0.8"], {"factor": 0.8}),
+        (
+            ["--predict", "paper", "--orbit", "1", "--no-spatial"],
+            {"predict": "paper", "orbit": 1.0, "spatial": False},
+        ),
+    ],
+)
+def test_regularize_equals_cli_bit_for_bit(cli, tmp_path, flags, kwargs):
+    out = tmp_path / "reg.exr"
+    common = ["-D", "res=24", "--spp", 4, "--seed", 2, "--frames", 3]
+    r = cli("regularize", scene("medium_cube"), *common, *flags, "--no-png", "-o", out)
+    assert r.returncode == 0, r.stderr
+    s = mediareg.load_file(scene("medium_cube"), res=24)
+    got = mediareg.regularize(s, spp=4, seed=2, frames=3, **kwargs)
+    for key, suffix in [
+        ("predicted", ""),
+        ("source", "_source"),
+        ("dalbedo_raw", "_dalbedo_raw"),
+        ("dalbedo", "_dalbedo"),
+    ]:
+        assert same_bits(got[key], mediareg.read_exr(tmp_path / f"reg{suffix}.exr")), key
+    assert got["frames"] == 3
+    if "factor" in kwargs:
+        source, target = np.array(got["albedo_source"]), np.array(got["albedo_target"])
+        np.testing.assert_allclose(source, kwargs["factor"] * target, rtol=1e-6)
+
+
+def test_regularize_bad_arguments():
+    cube = mediareg.load_file(scene("medium_cube"), res=8)
+    for kwargs, words in [
+        ({"predict": "cubic"}, "cubic"),
+        ({"factor": "half"}, "half"),
+        ({"c_beta": "big"}, "big"),
+        ({"orbit": 1.0, "dolly": 0.1}, "exclude"),
+        ({"target": (0, 0, 0)}, "orbit"),
+        ({"medium": "honey"}, "honey"),
+        ({"factor": 1.5}, "1.5"),
+    ]:
+        with pytest.raises(ValueError, match=words):
+            mediareg.regularize(cube, spp=1, frames=1, **kwargs)
+    with pytest.raises(ValueError, match="no medium"):
+        mediareg.regularize(mediareg.load_file(scene("cbox"), res=8), spp=1, factor=0.9)
