@@ -29,13 +29,14 @@ __all__ = [
 ]
 
 
-def load_file(path, search_path=None, strict_v3=False, **params):
+def load_file(path, search_path=None, strict_v3=False, sensor=0, **params):
     """Loads a Mitsuba 3 scene file (Mitsuba's ``mi.load_file``).
 
     ``params`` set the scene's parameters (``$name``), as ``-D name=value`` does: they
     override ``<default>``, and one the scene never uses is an error. ``search_path``:
     folders searched for meshes and includes after the scene's own (the CLI's ``-a``).
     ``strict_v3``: refuse the Mitsuba 0.6 readings (the CLI's ``--strict-v3``).
+    ``sensor``: which of the file's sensors the scene is built for (the CLI's ``--sensor``).
 
     Raises SceneError with the CLI's ``file:line:col: message``. The loader's warnings
     are issued as Python warnings (and kept in ``scene.warnings``).
@@ -46,6 +47,7 @@ def load_file(path, search_path=None, strict_v3=False, **params):
         str(path),
         search_path=None if search_path is None else [str(p) for p in search_path],
         strict_v3=strict_v3,
+        sensor=sensor,
         **params,
     )
     for w in scene.warnings:
@@ -53,12 +55,12 @@ def load_file(path, search_path=None, strict_v3=False, **params):
     return scene
 
 
-def render(scene, spp=None, seed=0, sensor=0, threads=None, gradient=None, medium=None):
+def render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, medium=None):
     """Renders ``scene`` (Mitsuba's ``mi.render``): a float32 array (H, W, 3).
 
     ``spp``: samples per pixel (None: the sampler's sample_count); ``seed``: as Mitsuba,
-    the seed given (0 by default), not the sampler's; ``sensor``: 0 only (the scene's
-    first); ``threads``: render threads (None: all cores); the image is the same at any
+    the seed given (0 by default), not the sampler's; ``sensor``: the one the scene was
+    loaded for (``load_file(..., sensor=N)``; None: that one); ``threads``: render threads (None: all cores); the image is the same at any
     count. ``gradient="albedo"`` also estimates d(radiance_c)/d(albedo_c) of one medium
     (``medium``: its XML id, needed when the scene has several) in the same paths, and
     returns ``(image, dalbedo)``. The GIL is released; Ctrl-C stops the render and

@@ -41,6 +41,8 @@ pub(crate) fn error(e: anyhow::Error) -> PyErr {
 pub struct PyScene {
     pub(crate) inner: Arc<mediareg::scene::Scene>,
     path: PathBuf,
+    /// The sensor the scene was built for (its medium is part of the built scene).
+    pub(crate) sensor: usize,
 }
 
 #[pymethods]
@@ -95,14 +97,15 @@ pub(crate) fn param_text(value: &Bound<'_, PyAny>) -> PyResult<String> {
     Ok(value.str()?.to_str()?.to_owned())
 }
 
-/// load_file(path, search_path=None, strict_v3=False, **params)
+/// load_file(path, search_path=None, strict_v3=False, sensor=0, **params)
 #[pyfunction]
-#[pyo3(signature = (path, search_path=None, strict_v3=false, **params))]
+#[pyo3(signature = (path, search_path=None, strict_v3=false, sensor=0, **params))]
 fn load_file(
     py: Python<'_>,
     path: PathBuf,
     search_path: Option<Vec<PathBuf>>,
     strict_v3: bool,
+    sensor: usize,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyScene> {
     let mut defines = Vec::new();
@@ -116,11 +119,18 @@ fn load_file(
     };
     // Loading builds the BVH (seconds for a large mesh): without the GIL.
     let scene = py
-        .detach(|| load_scene(&path, &opts, &BuildOverrides::default()))
+        .detach(|| {
+            let overrides = BuildOverrides {
+                sensor,
+                ..Default::default()
+            };
+            load_scene(&path, &opts, &overrides)
+        })
         .map_err(|e| SceneError::new_err(e.to_string()))?;
     Ok(PyScene {
         inner: Arc::new(scene),
         path,
+        sensor,
     })
 }
 

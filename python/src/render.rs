@@ -18,24 +18,25 @@ use crate::{bad_arg, error, PyScene};
 /// How often the caller's thread looks for signals (Ctrl-C) while a render runs.
 const SIGNAL_CHECK: Duration = Duration::from_millis(100);
 
-/// render(scene, spp=None, seed=0, sensor=0, threads=None, gradient=None, medium=None)
+/// render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, medium=None)
 #[pyfunction]
-#[pyo3(signature = (scene, spp=None, seed=0, sensor=0, threads=None, gradient=None, medium=None))]
+#[pyo3(signature = (scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, medium=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn render<'py>(
     py: Python<'py>,
     scene: &Bound<'py, PyScene>,
     spp: Option<u32>,
     seed: u64,
-    sensor: usize,
+    sensor: Option<usize>,
     threads: Option<usize>,
     gradient: Option<&str>,
     medium: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let data = Arc::clone(&scene.get().inner);
-    if sensor != 0 {
+    let built_for = scene.get().sensor;
+    if let Some(sensor) = sensor.filter(|&s| s != built_for) {
         return Err(bad_arg(format!(
-            "sensor={sensor}: mediareg renders a scene's first sensor only (sensor=0)"
+            "sensor={sensor}: this scene was built for sensor {built_for}; load_file(path, sensor={sensor}) builds it for sensor {sensor} (a sensor's medium is part of the built scene)"
         )));
     }
     if spp == Some(0) {

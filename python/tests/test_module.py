@@ -98,6 +98,13 @@ def test_bad_scene_message_names_file_line_col():
     assert f"{scene('cbox')}:24:" in str(e.value), str(e.value)
 
 
+def test_sensor_is_chosen_at_load():
+    with pytest.raises(mediareg.SceneError, match="1 <sensor>"):
+        mediareg.load_file(scene("cbox"), res=8, sensor=1)
+    s = mediareg.load_file(scene("cbox"), res=8, sensor=0)
+    assert mediareg.render(s, spp=1, sensor=0).shape == (8, 8, 3)
+
+
 def test_bad_arguments_raise_and_write_nothing(tmp_path):
     s = mediareg.load_file(scene("cbox"), res=8)
     for kwargs, words in [
