@@ -376,7 +376,10 @@ impl Accel {
     /// Embree's scene over the triangles of `prims` (in input order: each mesh's
     /// triangles contiguous, in the mesh's order).
     #[cfg(feature = "embree")]
-    fn build_embree(shapes: &[&Geometry], prims: &[PrimRef]) -> Result<embree::EmbreeScene, String> {
+    fn build_embree(
+        shapes: &[&Geometry],
+        prims: &[PrimRef],
+    ) -> Result<embree::EmbreeScene, String> {
         let mut meshes = Vec::new();
         let mut leaf = 0;
         while leaf < prims.len() {
@@ -388,6 +391,7 @@ impl Accel {
                 positions: &m.positions,
                 triangles: &m.triangles,
                 first_leaf: leaf as u32,
+                shape,
             });
             leaf += m.triangles.len();
         }
@@ -572,9 +576,7 @@ impl Accel {
         #[cfg(feature = "embree")]
         if let Some(e) = &self.embree {
             let found = if filtered {
-                e.intersect_filtered(o, d, t_best, &mut |leaf, _| {
-                    keep(self.prims[leaf as usize].shape)
-                })
+                e.intersect_filtered(o, d, t_best, &mut |c| keep(c.shape))
             } else {
                 e.intersect(o, d, t_best)
             };
@@ -725,15 +727,21 @@ impl Accel {
             // Embree may hand over a triangle twice (see `each_hit`): each counts once.
             let mut seen = ArrayVec::<u32, MAX_CROSSINGS>::new();
             let mut answer = None;
-            e.each_hit(o, d, tmax, &mut |leaf, t| {
-                if seen.contains(&leaf) {
+            e.each_hit(o, d, tmax, &mut |c| {
+                if seen.contains(&c.leaf) {
                     return false;
                 }
-                let shape = self.prims[leaf as usize].shape;
-                answer = record(self.triangle_crossing(shapes, shape, leaf as usize, t, d));
+                // Embree's normal is the triangle's (p1 − p0) × (p2 − p0), as the hit
+                // has it: no load of the accelerator's copy (a cache miss).
+                let flip = matches!(&shapes[c.shape as usize], Geometry::Mesh(m) if m.flip_normals);
+                answer = record(Crossing {
+                    t: c.t,
+                    shape: c.shape,
+                    along_normal: (d.dot(c.ng) > 0.0) != flip,
+                });
                 // A crossing recorded (and so seen) only where the search goes on.
                 if answer.is_none() {
-                    seen.push(leaf);
+                    seen.push(c.leaf);
                 }
                 answer.is_some()
             });
@@ -836,7 +844,7 @@ impl Accel {
     }
 }
 
-#[cfg(test)]
-mod tests;
 #[cfg(all(test, feature = "embree"))]
 mod embree_tests;
+#[cfg(test)]
+mod tests;

@@ -23,6 +23,8 @@ pub(crate) struct EmbreeScene {
     /// The accelerator's leaf index of each geometry's first triangle (by `geomID`):
     /// a hit's leaf is `first_leaf[geomID] + primID`.
     first_leaf: Vec<u32>,
+    /// The shape each geometry is (by `geomID`).
+    shape: Vec<u32>,
 }
 
 // SAFETY: the scene is committed before an `EmbreeScene` is handed out and never
@@ -37,6 +39,19 @@ pub(crate) struct MeshRef<'a> {
     pub positions: &'a [Vec3A],
     pub triangles: &'a [[u32; 3]],
     pub first_leaf: u32,
+    pub shape: u32,
+}
+
+/// A candidate hit as a filter sees it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Candidate {
+    /// The triangle's index in the accelerator's copy.
+    pub leaf: u32,
+    pub shape: u32,
+    pub t: f32,
+    /// Embree's geometric normal (not normalised): along (p1 − p0) × (p2 − p0), as
+    /// the accelerator's (`embree_tests` checks the side against obvhs's).
+    pub ng: Vec3A,
 }
 
 /// The intersect context Embree hands the filter function, extended (it comes first,
@@ -44,10 +59,10 @@ pub(crate) struct MeshRef<'a> {
 #[repr(C)]
 struct FilterContext<'a> {
     base: sys::RTCIntersectContext,
-    first_leaf: &'a [u32],
-    /// Called with each candidate hit (leaf, t); true accepts it (a closest-hit search
-    /// keeps it as the nearest so far; an occlusion search ends), false rejects it.
-    visit: &'a mut dyn FnMut(u32, f32) -> bool,
+    scene: &'a EmbreeScene,
+    /// Called with each candidate hit; true accepts it (a closest-hit search keeps it
+    /// as the nearest so far; an occlusion search ends), false rejects it.
+    visit: &'a mut dyn FnMut(Candidate) -> bool,
 }
 
 /// Embree's filter callback: [`FilterContext::visit`] for each valid ray of the
@@ -56,14 +71,15 @@ unsafe extern "C" fn filter(args: *const sys::RTCFilterFunctionNArguments) {
     // SAFETY: Embree passes valid arguments; `context` is the `FilterContext` the query
     // was started with (`base` first, `repr(C)`). RTCRayN and RTCHitN are N-wide SoA
     // structures of 4-byte fields: field k of ray i at word k·N + i (rtcore_ray.h's
-    // RTCRayN_* accessors): tfar is the ray's field 8, primID and geomID the hit's
-    // fields 5 and 6. The hit distance of the candidate is the ray's tfar.
+    // RTCRayN_* accessors): tfar is the ray's field 8; Ng the hit's fields 0-2, primID
+    // and geomID its fields 5 and 6. The hit distance of the candidate is the ray's tfar.
     unsafe {
         let args = &*args;
         let ctx = &mut *(args.context as *mut FilterContext);
         let n = args.N as usize;
         let ray = args.ray as *const f32;
         let hit = args.hit as *const u32;
+        let hit_f = args.hit as *const f32;
         for i in 0..n {
             let valid = args.valid.add(i);
             if *valid == 0 {
@@ -72,8 +88,14 @@ unsafe extern "C" fn filter(args: *const sys::RTCFilterFunctionNArguments) {
             let t = *ray.add(8 * n + i);
             let prim = *hit.add(5 * n + i);
             let geom = *hit.add(6 * n + i);
-            let leaf = ctx.first_leaf[geom as usize] + prim;
-            if !(ctx.visit)(leaf, t) {
+            let ng = Vec3A::new(*hit_f.add(i), *hit_f.add(n + i), *hit_f.add(2 * n + i));
+            let candidate = Candidate {
+                leaf: ctx.scene.first_leaf[geom as usize] + prim,
+                shape: ctx.scene.shape[geom as usize],
+                t,
+                ng,
+            };
+            if !(ctx.visit)(candidate) {
                 *valid = 0;
             }
         }
@@ -124,6 +146,7 @@ impl EmbreeScene {
                 device,
                 scene,
                 first_leaf: Vec::with_capacity(meshes.len()),
+                shape: Vec::with_capacity(meshes.len()),
             };
             if scene.is_null() {
                 s.scene = ptr::null_mut();
@@ -171,6 +194,7 @@ impl EmbreeScene {
                     return Err(s.error("rtcAttachGeometry"));
                 }
                 s.first_leaf.push(m.first_leaf);
+                s.shape.push(m.shape);
             }
             sys::rtcCommitScene(scene);
             match sys::rtcGetDeviceError(device) {
@@ -194,20 +218,20 @@ impl EmbreeScene {
         self.intersect_with(&mut ctx, o, d, tmax)
     }
 
-    /// The closest hit `keep(leaf)` accepts.
+    /// The closest hit `keep` accepts.
     pub(crate) fn intersect_filtered(
         &self,
         o: Vec3A,
         d: Vec3A,
         tmax: f32,
-        keep: &mut dyn FnMut(u32, f32) -> bool,
+        keep: &mut dyn FnMut(Candidate) -> bool,
     ) -> Option<(u32, f32, f32, f32)> {
         let mut ctx = FilterContext {
             base: sys::RTCIntersectContext {
                 filter: Some(filter),
                 ..context()
             },
-            first_leaf: &self.first_leaf,
+            scene: self,
             visit: keep,
         };
         self.intersect_with(&mut ctx.base, o, d, tmax)
@@ -260,21 +284,21 @@ impl EmbreeScene {
     }
 
     /// Every hit along `o + t d`, t ≤ tmax, in the order Embree meets them, handed to
-    /// `visit(leaf, t)` until it answers true; whether it did. A triangle Embree's
+    /// `visit` until it answers true; whether it did. A triangle Embree's
     /// spatial splits put in several leaves may be handed over more than once.
     pub(crate) fn each_hit(
         &self,
         o: Vec3A,
         d: Vec3A,
         tmax: f32,
-        visit: &mut dyn FnMut(u32, f32) -> bool,
+        visit: &mut dyn FnMut(Candidate) -> bool,
     ) -> bool {
         let mut ctx = FilterContext {
             base: sys::RTCIntersectContext {
                 filter: Some(filter),
                 ..context()
             },
-            first_leaf: &self.first_leaf,
+            scene: self,
             visit,
         };
         let mut r = ray(o, d, tmax);

@@ -40,7 +40,12 @@ fn uv_sphere(center: Vec3A, r: f32, n_lat: u32, n_lon: u32) -> RawMesh {
         t.push([0, ring(1, j), ring(1, j + 1)]);
         t.push([1, ring(n_lat - 1, j + 1), ring(n_lat - 1, j)]);
         for i in 1..n_lat - 1 {
-            let (a, b, c, d) = (ring(i, j), ring(i + 1, j), ring(i + 1, j + 1), ring(i, j + 1));
+            let (a, b, c, d) = (
+                ring(i, j),
+                ring(i + 1, j),
+                ring(i + 1, j + 1),
+                ring(i, j + 1),
+            );
             t.push([a, b, c]);
             t.push([a, c, d]);
         }
@@ -153,11 +158,17 @@ fn closest_hit_and_occlusion_match_obvhs() {
             (Some(a), Some(b)) if a.shape == b.shape && a.prim == b.prim => {
                 assert!(keep(a.shape), "{why}");
                 assert!((a.t - b.t).abs() <= 1e-5 * a.t.max(1.0), "{why}");
-                assert!((a.u - b.u).abs() < 1e-4 && (a.v - b.v).abs() < 1e-4, "{why}");
+                assert!(
+                    (a.u - b.u).abs() < 1e-4 && (a.v - b.v).abs() < 1e-4,
+                    "{why}"
+                );
                 if a.leaf != u32::MAX {
                     let (pa, na) = ours.triangle_surface(a.leaf, a.u, a.v);
                     let (pb, nb) = embree.triangle_surface(b.leaf, b.u, b.v);
-                    assert!((pa - pb).length() < 1e-4 && (na - nb).length() < 1e-4, "{why}");
+                    assert!(
+                        (pa - pb).length() < 1e-4 && (na - nb).length() < 1e-4,
+                        "{why}"
+                    );
                 }
                 hits += 1;
             }
@@ -243,7 +254,10 @@ fn crossings_match_obvhs() {
         eprintln!(
             "{pass:?}: {found} rays with crossings, {blocked} blocked, {differ} through an edge"
         );
-        assert!(found > 2_000 && blocked > 2_000, "{found} found, {blocked} blocked");
+        assert!(
+            found > 2_000 && blocked > 2_000,
+            "{found} found, {blocked} blocked"
+        );
         assert!(differ * 1000 < rays.len(), "{differ} differ");
     }
 }

@@ -169,9 +169,10 @@ fn node_test_matches_obvhs() {
     assert!(met >= 1000, "the rays met only {met} of {tests} nodes");
 }
 
-/// Nanoseconds a closest-hit query takes on 200,000 rays from random points of the
-/// Bunny's box (half of length 0.2 as free flights, half unbounded as shadow rays),
-/// best of 15 rounds: `cargo test --release --lib -- --ignored traversal_speed
+/// Nanoseconds a closest-hit query, an occlusion test and a crossings search (the
+/// Bunny passing shadow rays) take on 200,000 rays from random points of the Bunny's
+/// box (half of length 0.2 as free flights, half unbounded as shadow rays), best of 15
+/// rounds, with each backend (both obvhs without the `embree` feature): `cargo test --release --lib -- --ignored traversal_speed
 /// --nocapture` (needs .cache/meshes, see scripts/fetch_meshes).
 #[test]
 #[ignore]
@@ -194,18 +195,32 @@ fn traversal_speed() {
             (b.min + u * (b.max - b.min), d, tmax)
         })
         .collect();
-    for backend in [Backend::Obvhs, Backend::Embree] {
-        let accel = Accel::build_with(&[&g[0]], backend);
-        let mut best = f64::INFINITY;
-        for _ in 0..15 {
-            let start = std::time::Instant::now();
-            let hits = rays
-                .iter()
-                .filter(|&&(o, d, tmax)| accel.intersect(&g, o, d, tmax).is_some())
-                .count();
-            std::hint::black_box(hits);
-            best = best.min(start.elapsed().as_secs_f64() * 1e9 / rays.len() as f64);
+    // Rounds alternate between the backends (the machine is shared and noisy).
+    let accels = [Backend::Obvhs, Backend::Embree].map(|b| Accel::build_with(&[&g[0]], b));
+    let pass = [ShadowPass::Passes];
+    let mut best = [[f64::INFINITY; 3]; 2];
+    let mut list = CrossingList::new();
+    for _ in 0..15 {
+        for (accel, best) in accels.iter().zip(&mut best) {
+            for (kind, best) in best.iter_mut().enumerate() {
+                let start = std::time::Instant::now();
+                let hits = rays
+                    .iter()
+                    .filter(|&&(o, d, tmax)| match kind {
+                        0 => accel.intersect(&g, o, d, tmax).is_some(),
+                        1 => accel.occluded(&g, o, d, tmax),
+                        _ => accel.crossings(&g, &pass, o, d, tmax, &mut list) == Crossings::Found,
+                    })
+                    .count();
+                std::hint::black_box(hits);
+                *best = best.min(start.elapsed().as_secs_f64() * 1e9 / rays.len() as f64);
+            }
         }
-        eprintln!("{:?}: closest hit {best:.0} ns a ray", accel.backend());
+    }
+    for (accel, [hit, occluded, crossings]) in accels.iter().zip(best) {
+        eprintln!(
+            "{:?}: closest hit {hit:.0} ns, occluded {occluded:.0} ns, crossings {crossings:.0} ns a ray",
+            accel.backend()
+        );
     }
 }
