@@ -6,7 +6,6 @@
 
 use std::time::Duration;
 
-use arrayvec::ArrayVec;
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
@@ -16,9 +15,13 @@ use obvhs::BvhBuildParams;
 
 #[cfg(feature = "embree")]
 mod embree;
+mod hit;
 mod node;
 
-use super::cuboid::{Cuboid, CuboidHit};
+pub(super) use hit::cuboid_hit;
+pub use hit::{Crossing, CrossingList, Crossings, Hit, ShadowPass, MAX_CROSSINGS};
+
+use super::cuboid::Cuboid;
 use super::shape::Geometry;
 use super::Bounds;
 use node::{node_hits, traversal_ray};
@@ -66,89 +69,6 @@ impl LeafTriangle {
         }
         let t = self.e2.dot(qv) * inv;
         (t > 0.0 && t < tmax).then_some((t, u, v))
-    }
-}
-
-/// The closest hit of a ray: which shape and primitive, at which distance, and the
-/// triangle barycentrics (zero for analytic shapes).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Hit {
-    pub t: f32,
-    pub shape: u32,
-    pub prim: u32,
-    pub u: f32,
-    pub v: f32,
-    /// The triangle's place in the accelerator's own copy ([`Accel::triangle_surface`]),
-    /// `u32::MAX` for analytic shapes.
-    pub leaf: u32,
-}
-
-impl Hit {
-    /// A hit of analytic shape `shape` at distance `t` (no triangle, no barycentrics).
-    #[inline]
-    pub fn analytic(shape: u32, t: f32) -> Hit {
-        Hit {
-            t,
-            shape,
-            prim: 0,
-            u: 0.0,
-            v: 0.0,
-            leaf: u32::MAX,
-        }
-    }
-}
-
-/// How a surface treats a shadow ray (see [`Accel::crossings`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ShadowPass {
-    /// Stops it (every BSDF but the two below).
-    Blocks,
-    /// Lets it through unchanged (`null`).
-    Passes,
-    /// Lets part of it through, by the angle (`thindielectric`).
-    Partial,
-}
-
-/// The answer of [`Accel::crossings`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Crossings {
-    Blocked,
-    /// Every pass-through hit, in `out`.
-    Found,
-    /// The caller must cast one ray per crossing.
-    Unsupported,
-}
-
-/// A surface a shadow ray crosses: where, which shape, and whether the ray crosses
-/// along the surface's geometric normal (`d · n > 0`, `n` after `flip_normals`), all
-/// it needs to know which medium lies beyond (Mitsuba's `target_medium`). The side is
-/// read where the hit test has the surface at hand: no normal is looked up after.
-#[derive(Clone, Copy, Debug)]
-pub struct Crossing {
-    pub t: f32,
-    pub shape: u32,
-    pub along_normal: bool,
-}
-
-/// Crossings one shadow traversal collects before it gives up (see
-/// [`Accel::crossings`]).
-pub const MAX_CROSSINGS: usize = 16;
-
-/// Where [`Accel::crossings`] puts them. Its storage is not initialised: zeroing an
-/// array of 16 for every search cost the medium cube 5% of its render time (about two
-/// searches a sample, most of them finding one or two crossings).
-pub type CrossingList = ArrayVec<Crossing, MAX_CROSSINGS>;
-
-/// A cuboid's hit as the BVH would give it: the mesh triangle and its barycentrics.
-#[inline(always)]
-pub(super) fn cuboid_hit(c: &Cuboid, h: CuboidHit) -> Hit {
-    Hit {
-        t: h.t,
-        shape: c.shape,
-        prim: h.prim,
-        u: h.u,
-        v: h.v,
-        leaf: h.leaf,
     }
 }
 
@@ -299,17 +219,16 @@ impl Accel {
             && backend == Backend::Embree
             && !mixed
             && prims.len() > BRUTE_FORCE_PRIMS;
-        let mut warning = None;
         #[cfg(feature = "embree")]
-        let embree = embree_wanted
-            .then(|| {
-                Self::build_embree(shapes, &prims)
-                    .map_err(|e| warning = Some(format!("{e}; rays are cast with obvhs instead")))
-                    .ok()
-            })
-            .flatten();
+        let (embree, warning) = match embree_wanted.then(|| Self::build_embree(shapes, &prims)) {
+            Some(Ok(e)) => (Some(e), None),
+            Some(Err(e)) => (None, Some(format!("{e}; rays are cast with obvhs instead"))),
+            None => (None, None),
+        };
         #[cfg(feature = "embree")]
         let embree_wanted = embree.is_some();
+        #[cfg(not(feature = "embree"))]
+        let warning = None;
         let bvh = if aabbs.is_empty() || embree_wanted {
             CwBvh::default()
         } else {
@@ -725,7 +644,7 @@ impl Accel {
         #[cfg(feature = "embree")]
         if let Some(e) = &self.embree {
             // Embree may hand over a triangle twice (see `each_hit`): each counts once.
-            let mut seen = ArrayVec::<u32, MAX_CROSSINGS>::new();
+            let mut seen = arrayvec::ArrayVec::<u32, MAX_CROSSINGS>::new();
             let mut answer = None;
             e.each_hit(o, d, tmax, &mut |c| {
                 if seen.contains(&c.leaf) {
