@@ -1,11 +1,11 @@
 //! One compressed wide BVH (obvhs CWBVH) over every triangle of the scene, with the
 //! analytic shapes tested one by one beside it when there are few of them, else in it
 //! as one primitive each. Mitsuba `cube`s, when few, are tested beside it as boxes
-//! ([`Cuboid`]) instead of as 12 triangles in it.
+//! ([`Cuboid`]) instead of as 12 triangles in it. With the `embree` cargo feature, a
+//! BVH of triangles only is Embree's instead ([`Backend`]).
 
 use std::time::Duration;
 
-use arrayvec::ArrayVec;
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
@@ -13,9 +13,15 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::ray::Ray as BvhRay;
 use obvhs::BvhBuildParams;
 
+#[cfg(feature = "embree")]
+mod embree;
+mod hit;
 mod node;
 
-use super::cuboid::{Cuboid, CuboidHit};
+pub(super) use hit::cuboid_hit;
+pub use hit::{Crossing, CrossingList, Crossings, Hit, ShadowPass, MAX_CROSSINGS};
+
+use super::cuboid::Cuboid;
 use super::shape::Geometry;
 use super::Bounds;
 use node::{node_hits, traversal_ray};
@@ -66,89 +72,6 @@ impl LeafTriangle {
     }
 }
 
-/// The closest hit of a ray: which shape and primitive, at which distance, and the
-/// triangle barycentrics (zero for analytic shapes).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Hit {
-    pub t: f32,
-    pub shape: u32,
-    pub prim: u32,
-    pub u: f32,
-    pub v: f32,
-    /// The triangle's place in the accelerator's own copy ([`Accel::triangle_surface`]),
-    /// `u32::MAX` for analytic shapes.
-    pub leaf: u32,
-}
-
-impl Hit {
-    /// A hit of analytic shape `shape` at distance `t` (no triangle, no barycentrics).
-    #[inline]
-    pub fn analytic(shape: u32, t: f32) -> Hit {
-        Hit {
-            t,
-            shape,
-            prim: 0,
-            u: 0.0,
-            v: 0.0,
-            leaf: u32::MAX,
-        }
-    }
-}
-
-/// How a surface treats a shadow ray (see [`Accel::crossings`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ShadowPass {
-    /// Stops it (every BSDF but the two below).
-    Blocks,
-    /// Lets it through unchanged (`null`).
-    Passes,
-    /// Lets part of it through, by the angle (`thindielectric`).
-    Partial,
-}
-
-/// The answer of [`Accel::crossings`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Crossings {
-    Blocked,
-    /// Every pass-through hit, in `out`.
-    Found,
-    /// The caller must cast one ray per crossing.
-    Unsupported,
-}
-
-/// A surface a shadow ray crosses: where, which shape, and whether the ray crosses
-/// along the surface's geometric normal (`d · n > 0`, `n` after `flip_normals`), all
-/// it needs to know which medium lies beyond (Mitsuba's `target_medium`). The side is
-/// read where the hit test has the surface at hand: no normal is looked up after.
-#[derive(Clone, Copy, Debug)]
-pub struct Crossing {
-    pub t: f32,
-    pub shape: u32,
-    pub along_normal: bool,
-}
-
-/// Crossings one shadow traversal collects before it gives up (see
-/// [`Accel::crossings`]).
-pub const MAX_CROSSINGS: usize = 16;
-
-/// Where [`Accel::crossings`] puts them. Its storage is not initialised: zeroing an
-/// array of 16 for every search cost the medium cube 5% of its render time (about two
-/// searches a sample, most of them finding one or two crossings).
-pub type CrossingList = ArrayVec<Crossing, MAX_CROSSINGS>;
-
-/// A cuboid's hit as the BVH would give it: the mesh triangle and its barycentrics.
-#[inline(always)]
-pub(super) fn cuboid_hit(c: &Cuboid, h: CuboidHit) -> Hit {
-    Hit {
-        t: h.t,
-        shape: c.shape,
-        prim: h.prim,
-        u: h.u,
-        v: h.v,
-        leaf: h.leaf,
-    }
-}
-
 /// Up to this many primitives, testing each beats traversing the BVH: the furnace (one
 /// sphere) renders ~30% faster; the medium cube (14 primitives) ~10% slower, so the
 /// limit stays well below that.
@@ -160,8 +83,32 @@ const BRUTE_FORCE_PRIMS: usize = 4;
 /// More of them go into the BVH with the triangles.
 const SEPARATE_ANALYTIC: usize = 16;
 
+/// Which ray caster traverses the triangles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// obvhs's compressed wide BVH, with this module's node and triangle tests.
+    Obvhs,
+    /// Embree 3 (the `embree` feature; without it, obvhs). It is used where the BVH
+    /// would hold triangles only: with few primitives they are still tested one by one,
+    /// and a BVH that holds analytic shapes too (more than [`SEPARATE_ANALYTIC`]) stays
+    /// obvhs's.
+    Embree,
+}
+
+impl Backend {
+    /// Embree when the crate is built with it, else obvhs.
+    pub const DEFAULT: Backend = if cfg!(feature = "embree") {
+        Backend::Embree
+    } else {
+        Backend::Obvhs
+    };
+}
+
 pub struct Accel {
+    /// obvhs's BVH (empty where Embree traverses).
     bvh: CwBvh,
+    #[cfg(feature = "embree")]
+    embree: Option<embree::EmbreeScene>,
     /// Primitive `i` of the traversal (`bvh.primitive_indices` already applied).
     prims: Vec<PrimRef>,
     /// Its triangle, when it is one (zeros for analytic shapes).
@@ -175,10 +122,27 @@ pub struct Accel {
     /// Whether the BVH holds analytic shapes too (else triangles only).
     mixed: bool,
     pub bounds: Bounds,
+    /// Why the requested backend was not used, when it could not be built (Embree
+    /// failed): for the scene's warnings.
+    pub warning: Option<String>,
 }
 
 impl Accel {
+    /// The accelerator over `shapes` with [`Backend::DEFAULT`].
     pub fn build(shapes: &[&Geometry]) -> Accel {
+        Self::build_with(shapes, Backend::DEFAULT)
+    }
+
+    /// Which ray caster traverses the triangles.
+    pub fn backend(&self) -> Backend {
+        #[cfg(feature = "embree")]
+        if self.embree.is_some() {
+            return Backend::Embree;
+        }
+        Backend::Obvhs
+    }
+
+    pub fn build_with(shapes: &[&Geometry], backend: Backend) -> Accel {
         let n_analytic = shapes
             .iter()
             .filter(|g| !matches!(g, Geometry::Mesh(_)))
@@ -250,7 +214,22 @@ impl Accel {
                 }
             }
         }
-        let bvh = if aabbs.is_empty() {
+        // Embree builds its own BVH (from the meshes, below): prims stay in input order.
+        let embree_wanted = cfg!(feature = "embree")
+            && backend == Backend::Embree
+            && !mixed
+            && prims.len() > BRUTE_FORCE_PRIMS;
+        #[cfg(feature = "embree")]
+        let (embree, warning) = match embree_wanted.then(|| Self::build_embree(shapes, &prims)) {
+            Some(Ok(e)) => (Some(e), None),
+            Some(Err(e)) => (None, Some(format!("{e}; rays are cast with obvhs instead"))),
+            None => (None, None),
+        };
+        #[cfg(feature = "embree")]
+        let embree_wanted = embree.is_some();
+        #[cfg(not(feature = "embree"))]
+        let warning = None;
+        let bvh = if aabbs.is_empty() || embree_wanted {
             CwBvh::default()
         } else {
             build_cwbvh(
@@ -267,7 +246,7 @@ impl Accel {
         };
         // Lay primitives out in traversal order (small scenes are tested in input
         // order, without the BVH).
-        if prims.len() > BRUTE_FORCE_PRIMS {
+        if prims.len() > BRUTE_FORCE_PRIMS && !embree_wanted {
             prims = bvh
                 .primitive_indices
                 .iter()
@@ -301,13 +280,41 @@ impl Accel {
         }
         Accel {
             bvh,
+            #[cfg(feature = "embree")]
+            embree,
             prims,
             triangles,
             analytic,
             cuboids,
             mixed,
             bounds,
+            warning,
         }
+    }
+
+    /// Embree's scene over the triangles of `prims` (in input order: each mesh's
+    /// triangles contiguous, in the mesh's order).
+    #[cfg(feature = "embree")]
+    fn build_embree(
+        shapes: &[&Geometry],
+        prims: &[PrimRef],
+    ) -> Result<embree::EmbreeScene, String> {
+        let mut meshes = Vec::new();
+        let mut leaf = 0;
+        while leaf < prims.len() {
+            let shape = prims[leaf].shape;
+            let Geometry::Mesh(m) = shapes[shape as usize] else {
+                return Err(format!("shape {shape} is not a mesh"));
+            };
+            meshes.push(embree::MeshRef {
+                positions: &m.positions,
+                triangles: &m.triangles,
+                first_leaf: leaf as u32,
+                shape,
+            });
+            leaf += m.triangles.len();
+        }
+        embree::EmbreeScene::build(&meshes)
     }
 
     /// The cube `shape` as the accelerator tests it, if it is tested as a box.
@@ -426,7 +433,7 @@ impl Accel {
     /// Closest hit along `o + t d`, 0 < t < tmax.
     #[inline(always)]
     pub fn intersect(&self, shapes: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> Option<Hit> {
-        self.intersect_where(shapes, o, d, tmax, |_| true)
+        self.closest(shapes, o, d, tmax, |_| true, false)
     }
 
     /// Closest hit along `o + t d`, 0 < t < tmax, with a shape `keep` accepts (with
@@ -439,6 +446,21 @@ impl Accel {
         d: Vec3A,
         tmax: f32,
         keep: impl Fn(u32) -> bool,
+    ) -> Option<Hit> {
+        self.closest(shapes, o, d, tmax, keep, true)
+    }
+
+    /// [`Accel::intersect_where`]; `filtered` false says `keep` accepts every shape
+    /// (Embree is then asked without a filter callback).
+    #[inline(always)]
+    fn closest(
+        &self,
+        shapes: &[Geometry],
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+        keep: impl Fn(u32) -> bool,
+        filtered: bool,
     ) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_best = tmax;
@@ -470,6 +492,20 @@ impl Accel {
             }
             return best;
         }
+        #[cfg(feature = "embree")]
+        if let Some(e) = &self.embree {
+            let found = if filtered {
+                e.intersect_filtered(o, d, t_best, &mut |c| keep(c.shape))
+            } else {
+                e.intersect(o, d, t_best)
+            };
+            return match found {
+                Some((leaf, t, u, v)) => Some(self.hit(leaf as usize, t, u, v)),
+                None => best,
+            };
+        }
+        #[cfg(not(feature = "embree"))]
+        let _ = filtered;
         let (ray, back) = traversal_ray(o, d, t_best);
         let mut best_prim = None;
         self.traverse(ray, |ray_tmax, id| {
@@ -605,6 +641,31 @@ impl Accel {
             }
             return Crossings::Found;
         }
+        #[cfg(feature = "embree")]
+        if let Some(e) = &self.embree {
+            // Embree may hand over a triangle twice (see `each_hit`): each counts once.
+            let mut seen = arrayvec::ArrayVec::<u32, MAX_CROSSINGS>::new();
+            let mut answer = None;
+            e.each_hit(o, d, tmax, &mut |c| {
+                if seen.contains(&c.leaf) {
+                    return false;
+                }
+                // Embree's normal is the triangle's (p1 − p0) × (p2 − p0), as the hit
+                // has it: no load of the accelerator's copy (a cache miss).
+                let flip = matches!(&shapes[c.shape as usize], Geometry::Mesh(m) if m.flip_normals);
+                answer = record(Crossing {
+                    t: c.t,
+                    shape: c.shape,
+                    along_normal: (d.dot(c.ng) > 0.0) != flip,
+                });
+                // A crossing recorded (and so seen) only where the search goes on.
+                if answer.is_none() {
+                    seen.push(c.leaf);
+                }
+                answer.is_some()
+            });
+            return answer.unwrap_or(Crossings::Found);
+        }
         let (ray, _) = traversal_ray(o, d, tmax);
         let mut answer = None;
         self.traverse(ray, |_, id| {
@@ -682,6 +743,10 @@ impl Accel {
             return (0..self.prims.len())
                 .any(|i| self.prim_intersect(shapes, i, o, d, tmax).is_some());
         }
+        #[cfg(feature = "embree")]
+        if let Some(e) = &self.embree {
+            return e.occluded(o, d, tmax);
+        }
         let (ray, back) = traversal_ray(o, d, tmax);
         let mut blocked = false;
         self.traverse(ray, |ray_tmax, id| {
@@ -698,5 +763,7 @@ impl Accel {
     }
 }
 
+#[cfg(all(test, feature = "embree"))]
+mod embree_tests;
 #[cfg(test)]
 mod tests;

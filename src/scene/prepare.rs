@@ -55,10 +55,11 @@ impl Scene {
             camera_medium,
             shot,
             integrator,
-            warnings,
+            mut warnings,
         } = parts;
         let refs: Vec<&Geometry> = geometries.iter().collect();
-        let accel = Accel::build(&refs);
+        let mut accel = Accel::build(&refs);
+        warnings.extend(accel.warning.take());
         // The clearance saves ray casts; where a cast is a few analytic tests (no BVH), the
         // two grid lookups a scattering cost more than the cast, and the shadow roulette's
         // variance is not paid back: the furnace sphere lost 20% of its efficiency with it,

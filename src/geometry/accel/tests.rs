@@ -65,13 +65,20 @@ fn brute_force(g: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> Option<(u32, f3
 
 /// Analytic shapes beside the BVH (3 spheres) and inside it (20 spheres), and cubes
 /// as boxes beside it or as triangles in it, give the hits of testing every
-/// primitive (to rounding where a box's slab test stands for its triangles).
+/// primitive (to rounding where a box's slab test stands for its triangles), with
+/// either backend (Embree's triangle test rounds otherwise than ours: to rounding too).
 #[test]
 fn closest_hit_and_occlusion_match_brute_force() {
-    for (spheres, boxes) in [(3, false), (3, true), (SEPARATE_ANALYTIC + 4, true)] {
+    for (spheres, boxes, backend) in [
+        (3, false, Backend::Obvhs),
+        (3, true, Backend::Obvhs),
+        (SEPARATE_ANALYTIC + 4, true, Backend::Obvhs),
+        (3, false, Backend::Embree),
+    ] {
         let g = scene(spheres, boxes);
         let refs: Vec<&Geometry> = g.iter().collect();
-        let accel = Accel::build(&refs);
+        let accel = Accel::build_with(&refs, backend);
+        let exact = accel.backend() == Backend::Obvhs;
         // Too many shapes beside the BVH: the cubes go into it.
         let as_boxes = boxes && spheres <= SEPARATE_ANALYTIC;
         assert_eq!(accel.cuboids.len(), if as_boxes { 2 } else { 0 });
@@ -88,7 +95,7 @@ fn closest_hit_and_occlusion_match_brute_force() {
             let tmax = if i % 2 == 0 { 1.0 } else { f32::INFINITY };
             let got = accel.intersect(&g, o, d, tmax).map(|h| (h.shape, h.t));
             let want = brute_force(&g, o, d, tmax);
-            if as_boxes {
+            if as_boxes || !exact {
                 let (gs, gt) = got.unwrap_or((u32::MAX, 0.0));
                 let (ws, wt) = want.unwrap_or((u32::MAX, 0.0));
                 assert!(
@@ -138,7 +145,7 @@ fn node_test_matches_obvhs() {
     let mesh = TriangleMesh::new(raw, &Mat4::IDENTITY, false, false, Path::new("soup"))
         .expect("a triangle soup");
     let g = [Geometry::Mesh(mesh)];
-    let accel = Accel::build(&[&g[0]]);
+    let accel = Accel::build_with(&[&g[0]], Backend::Obvhs);
     assert!(accel.bvh.nodes.len() > 1000);
     let (mut met, mut tests) = (0u64, 0u64);
     for i in 0..300 {
@@ -162,9 +169,10 @@ fn node_test_matches_obvhs() {
     assert!(met >= 1000, "the rays met only {met} of {tests} nodes");
 }
 
-/// Nanoseconds a closest-hit query takes on 200,000 rays from random points of the
-/// Bunny's box (half of length 0.2 as free flights, half unbounded as shadow rays),
-/// best of 15 rounds: `cargo test --release --lib -- --ignored traversal_speed
+/// Nanoseconds a closest-hit query, an occlusion test and a crossings search (the
+/// Bunny passing shadow rays) take on 200,000 rays from random points of the Bunny's
+/// box (half of length 0.2 as free flights, half unbounded as shadow rays), best of 15
+/// rounds, with each backend (both obvhs without the `embree` feature): `cargo test --release --lib -- --ignored traversal_speed
 /// --nocapture` (needs .cache/meshes, see scripts/fetch_meshes).
 #[test]
 #[ignore]
@@ -187,16 +195,32 @@ fn traversal_speed() {
             (b.min + u * (b.max - b.min), d, tmax)
         })
         .collect();
-    let accel = Accel::build(&[&g[0]]);
-    let mut best = f64::INFINITY;
+    // Rounds alternate between the backends (the machine is shared and noisy).
+    let accels = [Backend::Obvhs, Backend::Embree].map(|b| Accel::build_with(&[&g[0]], b));
+    let pass = [ShadowPass::Passes];
+    let mut best = [[f64::INFINITY; 3]; 2];
+    let mut list = CrossingList::new();
     for _ in 0..15 {
-        let start = std::time::Instant::now();
-        let hits = rays
-            .iter()
-            .filter(|&&(o, d, tmax)| accel.intersect(&g, o, d, tmax).is_some())
-            .count();
-        std::hint::black_box(hits);
-        best = best.min(start.elapsed().as_secs_f64() * 1e9 / rays.len() as f64);
+        for (accel, best) in accels.iter().zip(&mut best) {
+            for (kind, best) in best.iter_mut().enumerate() {
+                let start = std::time::Instant::now();
+                let hits = rays
+                    .iter()
+                    .filter(|&&(o, d, tmax)| match kind {
+                        0 => accel.intersect(&g, o, d, tmax).is_some(),
+                        1 => accel.occluded(&g, o, d, tmax),
+                        _ => accel.crossings(&g, &pass, o, d, tmax, &mut list) == Crossings::Found,
+                    })
+                    .count();
+                std::hint::black_box(hits);
+                *best = best.min(start.elapsed().as_secs_f64() * 1e9 / rays.len() as f64);
+            }
+        }
     }
-    eprintln!("closest hit: {best:.0} ns a ray");
+    for (accel, [hit, occluded, crossings]) in accels.iter().zip(best) {
+        eprintln!(
+            "{:?}: closest hit {hit:.0} ns, occluded {occluded:.0} ns, crossings {crossings:.0} ns a ray",
+            accel.backend()
+        );
+    }
 }
