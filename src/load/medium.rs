@@ -16,10 +16,14 @@ impl Builder<'_> {
             return Ok(i);
         }
         let p = Props::new(self.desc, id);
+        // A medium that varies in space: `heterogeneous`, or a grid albedo.
+        if p.obj.plugin == "heterogeneous"
+            || (p.obj.plugin == "homogeneous" && super::volume::is_grid(&p, "albedo"))
+        {
+            return self.heterogeneous_medium(id, p);
+        }
         if p.obj.plugin != "homogeneous" {
-            return Err(unsupported(&p, "medium", "homogeneous").with_hint(
-                "heterogeneous (grid) media are out of scope; mediareg supports homogeneous media",
-            ));
+            return Err(unsupported(&p, "medium", "homogeneous, heterogeneous"));
         }
         // Both are Mitsuba volumes (`constvolume`), whose values are unbounded textures.
         let albedo = p.color_nonneg_as("albedo", Vec3::splat(0.75), SpectrumUse::Unbounded)?;
@@ -58,7 +62,25 @@ impl Builder<'_> {
             )
             .with_hint("remove has_spectral_extinction (default true), or give a grey sigma_t"));
         }
-        let phase = match p.child_of(ObjectKind::Phase)? {
+        let phase = self.phase(&p)?;
+        let medium_id = p.obj.id.clone();
+        p.finish("albedo, sigma_t, scale, sample_emitters, has_spectral_extinction, phase")?;
+        self.media.push(HomogeneousMedium {
+            albedo,
+            sigma_t: sigma_t * scale as f32,
+            phase,
+            sample_emitters,
+            id: medium_id,
+            heterogeneous: None,
+        });
+        let i = self.media.len() as u32 - 1;
+        self.medium_ids.insert(id, i);
+        Ok(i)
+    }
+
+    /// The medium's nested phase function (`isotropic` when none is given).
+    pub(super) fn phase(&self, p: &Props) -> Result<Phase> {
+        Ok(match p.child_of(ObjectKind::Phase)? {
             Some(c) => {
                 let q = Props::new(self.desc, c.object);
                 let ph = match q.obj.plugin.as_str() {
@@ -78,18 +100,6 @@ impl Builder<'_> {
                 ph
             }
             None => Phase::Isotropic,
-        };
-        let medium_id = p.obj.id.clone();
-        p.finish("albedo, sigma_t, scale, sample_emitters, has_spectral_extinction, phase")?;
-        self.media.push(HomogeneousMedium {
-            albedo,
-            sigma_t: sigma_t * scale as f32,
-            phase,
-            sample_emitters,
-            id: medium_id,
-        });
-        let i = self.media.len() as u32 - 1;
-        self.medium_ids.insert(id, i);
-        Ok(i)
+        })
     }
 }

@@ -7,6 +7,7 @@
 
 mod bsdf;
 mod emitter;
+mod heterogeneous;
 mod integrator;
 mod medium;
 pub mod props;
@@ -14,6 +15,7 @@ mod sensor;
 mod shape;
 pub mod spectrum;
 mod texture;
+mod volume;
 
 use std::collections::HashMap;
 use std::path::Path;

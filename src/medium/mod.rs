@@ -7,10 +7,13 @@
 //! a whole segment of length `s`. Transmittance along a segment is `e^{−σ_t s}` per
 //! channel (Beer–Lambert).
 
+pub mod grid;
+pub mod heterogeneous;
 pub mod phase;
 
 use glam::Vec3;
 
+pub use heterogeneous::HeterogeneousMedium;
 pub use phase::Phase;
 
 #[derive(Clone, Debug)]
@@ -25,6 +28,12 @@ pub struct HomogeneousMedium {
     pub sample_emitters: bool,
     /// The XML `id`, to name the medium (e.g. `--gradient albedo --medium ID`).
     pub id: Option<String>,
+    /// Set for a medium that varies in space (`heterogeneous`, or a volume albedo):
+    /// the volpath then tracks it (`heterogeneous`), and `sigma_t` above holds its
+    /// majorant (an upper bound), `albedo` a global factor on its albedo volume (1 as
+    /// loaded; the albedo gradient is with respect to it). None: the homogeneous
+    /// medium, rendered by the code paths for it.
+    pub heterogeneous: Option<Box<HeterogeneousMedium>>,
 }
 
 impl HomogeneousMedium {
@@ -89,6 +98,7 @@ mod tests {
             phase: Phase::Isotropic,
             sample_emitters: true,
             id: None,
+            heterogeneous: None,
         };
         let n = 200_000;
         for (c, want) in [(0, 0.5f64), (1, 0.2)] {
