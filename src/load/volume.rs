@@ -119,7 +119,7 @@ impl Builder<'_> {
         if let Some(m) = max_value {
             // Mitsuba takes it as the majorant unchecked; one below the data would bias
             // the render.
-            if !(m as f32 >= v.max) {
+            if (m as f32) < v.max || m.is_nan() {
                 return Err(SceneError::at(floc, format!(
                     "{label}: max_value = {m} is below the grid's largest value {}: as a majorant it would bias the image",
                     v.max
