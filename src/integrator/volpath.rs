@@ -1,6 +1,8 @@
 //! Mitsuba 3's `volpath` integrator (`src/integrators/volpath.cpp`): volumetric path
 //! tracing in homogeneous media with emitter sampling at surface and medium vertices,
-//! combined with BSDF / phase sampling by the power heuristic.
+//! combined with BSDF / phase sampling by the power heuristic. Heterogeneous media take
+//! delta tracking for free flights and ratio tracking for shadow segments
+//! (`medium::heterogeneous`, docs/volpath.md); what follows is about homogeneous ones.
 //!
 //! Semantics kept from Mitsuba (what a scene file can change):
 //! * depth counts scattering vertices, in media and on non-null surfaces; crossing a

@@ -1,5 +1,7 @@
 //! Participating media: Mitsuba 3's `homogeneous` medium (`src/media/homogeneous.cpp`)
 //! with the `hg` or `isotropic` phase function (`src/phase/hg.cpp`).
+//! Media that vary in space (`heterogeneous`, volumes from `grid`) are tracked
+//! instead (`heterogeneous`); this file's sampling is the homogeneous case.
 //!
 //! Free-flight distances are sampled from σ_t of one colour channel (Mitsuba's
 //! `Medium::sample_interaction`), never from the albedo: `t = −ln(1 − u) / σ_t[c]`,
