@@ -48,10 +48,17 @@ const EXPECTED: &[(&str, Status)] = &[
             power: Some(("name=\"albedo\"", 0.98)),
         },
     ),
-    // A gridvolume albedo makes the medium heterogeneous: out of scope, refused by name.
     (
         "mdata_medium_sss_textured",
-        Refused("nested volume plugin \"gridvolume\""),
+        Matches {
+            // mdata_medium_sss with a gridvolume albedo (wrap_mode repeat) in its
+            // homogeneous medium: tracked as a heterogeneous one; the same crop window.
+            reference: "corpus_mdata_medium_sss_textured",
+            params: &[],
+            chunks: 8,
+            spp: 64,
+            power: Some(("name=\"scale\"", 1.05)),
+        },
     ),
     // The trimmed corpus copy lacks the folder; Mitsuba 3.9.1 refuses it the same way.
     (
@@ -118,25 +125,54 @@ const EXPECTED: &[(&str, Status)] = &[
             power: Some(("name=\"albedo\"", 0.98)),
         },
     ),
-    // Heterogeneous media are out of scope: refused by name.
     (
         "mdata_hetero_sigmat",
-        Refused("unsupported medium plugin \"heterogeneous\""),
+        Matches {
+            // heterogeneous: a 16³ gridvolume sigma_t (its box not the cube's), rgb albedo.
+            reference: "corpus_mdata_hetero_sigmat",
+            params: &[],
+            chunks: 16,
+            spp: 128,
+            // The density (sigma_t's scale) 5% higher.
+            power: Some(("name=\"scale\"", 1.05)),
+        },
     ),
-    // Heterogeneous media are out of scope: refused by name.
     (
         "mdata_hetero_sigmat_albedo",
-        Refused("unsupported medium plugin \"heterogeneous\""),
+        Matches {
+            // heterogeneous: gridvolume sigma_t and a 3-channel gridvolume albedo.
+            reference: "corpus_mdata_hetero_sigmat_albedo",
+            params: &[],
+            chunks: 16,
+            spp: 128,
+            // The density (sigma_t's scale) 5% higher.
+            power: Some(("name=\"scale\"", 1.05)),
+        },
     ),
-    // Heterogeneous media are out of scope: refused by name.
     (
         "mdata_hetero_spectral_noscat",
-        Refused("unsupported medium plugin \"heterogeneous\""),
+        Matches {
+            // heterogeneous: a chromatic constvolume sigma_t over [-0.5, 0.5]³ only, albedo 0.
+            reference: "corpus_mdata_hetero_spectral_noscat",
+            params: &[],
+            chunks: 16,
+            spp: 128,
+            // The density 10% higher: 5% moved the image mean by only −4.7 σ (the box
+            // of medium covers a small part of the film).
+            power: Some(("name=\"scale\"", 1.1)),
+        },
     ),
-    // Heterogeneous media are out of scope: refused by name (its volpathmis loads).
     (
         "mdata_hetero_spectral_mis",
-        Refused("unsupported medium plugin \"heterogeneous\""),
+        Matches {
+            // volpathmis (rendered by volpath) through a 3-channel gridvolume sigma_t.
+            reference: "corpus_mdata_hetero_spectral_mis",
+            params: &[],
+            chunks: 16,
+            spp: 128,
+            // The density (sigma_t's scale) 5% higher.
+            power: Some(("name=\"scale\"", 1.05)),
+        },
     ),
     (
         "mdata_surf_area_light_volpath",

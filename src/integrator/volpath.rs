@@ -1,6 +1,8 @@
 //! Mitsuba 3's `volpath` integrator (`src/integrators/volpath.cpp`): volumetric path
 //! tracing in homogeneous media with emitter sampling at surface and medium vertices,
-//! combined with BSDF / phase sampling by the power heuristic.
+//! combined with BSDF / phase sampling by the power heuristic. Heterogeneous media take
+//! delta tracking for free flights and ratio tracking for shadow segments
+//! (`medium::heterogeneous`, docs/volpath.md); what follows is about homogeneous ones.
 //!
 //! Semantics kept from Mitsuba (what a scene file can change):
 //! * depth counts scattering vertices, in media and on non-null surfaces; crossing a
@@ -95,12 +97,19 @@ fn medium_beyond(info: &ShapeInfo, along_normal: bool, current: Option<u32>) -> 
 /// Where the accelerator can, it finds every crossing in one traversal
 /// ([`Scene::crossings`]); else one ray is
 /// cast per crossing, as Mitsuba does.
-fn shadow_transmittance(scene: &Scene, o: Vec3A, d: Vec3A, dist: f32, medium: Option<u32>) -> Vec3 {
+fn shadow_transmittance(
+    scene: &Scene,
+    o: Vec3A,
+    d: Vec3A,
+    dist: f32,
+    medium: Option<u32>,
+    rng: &mut Pcg32,
+) -> Vec3 {
     let mut hits = CrossingList::new();
     match scene.crossings(o, d, dist, &mut hits) {
         Crossings::Blocked => Vec3::ZERO,
-        Crossings::Found => through_crossings(scene, dist, medium, &mut hits),
-        Crossings::Unsupported => shadow_transmittance_stepwise(scene, o, d, dist, medium),
+        Crossings::Found => through_crossings(scene, o, d, dist, medium, &mut hits, rng),
+        Crossings::Unsupported => shadow_transmittance_stepwise(scene, o, d, dist, medium, rng),
     }
 }
 
@@ -111,24 +120,46 @@ fn shadow_transmittance(scene: &Scene, o: Vec3A, d: Vec3A, dist: f32, medium: Op
 /// first did, after a segment of length 0.
 fn through_crossings(
     scene: &Scene,
+    o: Vec3A,
+    d: Vec3A,
     dist: f32,
     mut medium: Option<u32>,
     hits: &mut [Crossing],
+    rng: &mut Pcg32,
 ) -> Vec3 {
     hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t));
     let mut tr = Vec3::ONE;
     let mut start = 0.0f32;
     for h in hits.iter() {
         if let Some(m) = medium {
-            tr *= transmittance(scene.media[m as usize].sigma_t, h.t - start);
+            tr *= segment_transmittance(scene, m, o + d * start, d, h.t - start, rng);
         }
         start = h.t;
         medium = medium_beyond(&scene.shapes[h.shape as usize], h.along_normal, medium);
     }
     if let Some(m) = medium {
-        tr *= transmittance(scene.media[m as usize].sigma_t, dist - start);
+        tr *= segment_transmittance(scene, m, o + d * start, d, dist - start, rng);
     }
     tr
+}
+
+/// The transmittance of a segment from `o` along `d` of length `len` in medium `m`:
+/// Beer–Lambert in a homogeneous medium, ratio tracking (an unbiased estimate) in a
+/// heterogeneous one.
+#[inline]
+fn segment_transmittance(
+    scene: &Scene,
+    m: u32,
+    o: Vec3A,
+    d: Vec3A,
+    len: f32,
+    rng: &mut Pcg32,
+) -> Vec3 {
+    let med = &scene.media[m as usize];
+    match &med.heterogeneous {
+        None => transmittance(med.sigma_t, len),
+        Some(h) => h.transmittance(o, d, len, rng),
+    }
 }
 
 /// [`shadow_transmittance`] by one closest-hit cast per crossing.
@@ -138,6 +169,7 @@ fn shadow_transmittance_stepwise(
     d: Vec3A,
     mut dist: f32,
     mut medium: Option<u32>,
+    rng: &mut Pcg32,
 ) -> Vec3 {
     let mut tr = Vec3::ONE;
     for _ in 0..MAX_SHADOW_CROSSINGS {
@@ -147,7 +179,7 @@ fn shadow_transmittance_stepwise(
         let hit = scene.intersect(o, d, dist);
         let seg = hit.map_or(dist, |h| h.t);
         if let Some(m) = medium {
-            tr *= transmittance(scene.media[m as usize].sigma_t, seg);
+            tr *= segment_transmittance(scene, m, o, d, seg, rng);
         }
         let Some(h) = hit else { return tr };
         let info = &scene.shapes[h.shape as usize];
@@ -199,7 +231,11 @@ fn medium_emitter_sample(
     // dist)}. Cast with probability q, weighted 1/q: the estimate stays unbiased and, as
     // T/q ≤ 1, never exceeds the exact one's bound (at most the variance of Mitsuba's
     // 0-or-1 transmittance estimate).
-    let sigma_min = m.sigma_t.min_element();
+    // (No such bound in a heterogeneous medium: its σ_t may be 0 anywhere.)
+    let sigma_min = match m.heterogeneous {
+        None => m.sigma_t.min_element(),
+        Some(_) => 0.0,
+    };
     let free = free.max(scene.clearance.at(p));
     let q = if sigma_min > 0.0 && free > 0.0 {
         (-sigma_min * dist.min(free)).exp()
@@ -207,9 +243,9 @@ fn medium_emitter_sample(
         1.0
     };
     let tr = if q >= 1.0 {
-        shadow_transmittance(scene, p, es.d, dist, medium)
+        shadow_transmittance(scene, p, es.d, dist, medium, rng)
     } else if q > 0.0 && rng.next_1d() < q {
-        shadow_transmittance(scene, p, es.d, dist, medium) / q
+        shadow_transmittance(scene, p, es.d, dist, medium, rng) / q
     } else {
         return Vec3::ZERO;
     };
@@ -392,96 +428,127 @@ pub fn sample(
             let m: &HomogeneousMedium = &scene.media[mi as usize];
             // The render's albedo of this medium (the scene's unless overridden).
             let albedo = settings.albedo[mi as usize];
-            let t = m.sample_distance(hero, rng.next_1d());
-            // Within the clearance no surface can be hit: the cast's answer is known.
-            // In a convex medium the distance to its one shape is a clearance too, and
-            // an exact one. Shadow rays are still played against the grid's alone
-            // (below): against the convex one, the medium cube's shadow roulette cost
-            // more in variance (+6% MSE) than it saved in time (−2%).
-            let clearance = scene.clearance.at(ray_o);
-            let convex = scene.convex_media[mi as usize].as_ref();
-            let skip_within = convex.map_or(clearance, |b| {
-                b.clearance(&scene.geometries, ray_o).max(clearance)
-            });
-            // Where the ray may end on an area emitter, it is cast in full (not only up
-            // to t, nor skipped within the clearance), so the emission there can be
-            // counted in expectation.
-            si = if scene.may_see_area_emitter(mi, ray_o, ray_d) {
-                let full = scene.intersect_in_medium(mi, ray_o, ray_d, ray_tmax);
-                // ---- Emission at the segment's end, in expectation ----
-                // The flight passes to the hit with probability T_hero(h.t) and then weighs the
-                // emission by β T / mean(r T) (see the module comment): count that
-                // product now instead of its 0-or-1 sample, and not again at the hit.
-                if let Some(h) = &full {
-                    let le = emission_seen(scene, Some(h), ray_d, depth, specular_chain, &last);
-                    if le != Vec3::ZERO {
-                        let tr = m.transmittance(h.t);
-                        let pass = tr * (tr[hero] / mean(r_u * tr));
-                        if pass.is_finite() {
-                            result += beta * pass * le;
-                            d_result += d_beta * pass * le;
-                        }
-                        emission_counted = true;
-                    }
-                }
-                full.filter(|h| h.t < t)
-            } else if t < skip_within {
-                None
-            } else {
-                scene.intersect_in_medium(mi, ray_o, ray_d, t.min(ray_tmax))
-            };
-            let collided = si.is_none() && t.is_finite() && t <= ray_tmax;
-            if m.is_grey() {
-                // Grey σ_t: f and every p_c are alike, so w = T / T = 1 for passing and
-                // σ_t T / (σ_t T) = 1 for a collision (exactly, in floating point too):
-                // only α is left, r is unchanged, and no transmittance is needed.
-                if collided {
-                    d_beta_before = d_beta * albedo;
-                    let (a, b) = settings.gradient.vertex_factors(mi, albedo);
-                    d_beta = d_beta * a + beta * b;
-                    beta *= albedo;
-                    in_medium = true;
-                }
-            } else {
-                match si {
-                    Some(h) => {
-                        // Passed the whole segment: f = T, p_c = T_c.
-                        let tr = m.transmittance(h.t);
-                        let w = tr / tr[hero];
-                        beta *= w;
-                        d_beta *= w;
-                        r_u *= w;
-                    }
-                    None if collided => {
-                        // Collision at t: f = T σ_t α, p_c = σ_t,c T_c.
-                        let tr = m.transmittance(t);
-                        let p_hero = m.sigma_t[hero] * tr[hero];
-                        let w = tr * m.sigma_t / p_hero;
-                        // d(β w α)/dα = dβ w α + β w in the chosen medium.
-                        d_beta_before = d_beta * w * albedo;
+            let (t, clearance) = if let Some(het) = m.heterogeneous.as_deref() {
+                // ---- Delta tracking through a heterogeneous medium ----
+                // The surface that ends the ray, then the first real collision before
+                // it (medium::heterogeneous). The majorant is grey, so every channel's
+                // pdf is the hero's: r is unchanged.
+                let hit = scene.intersect_in_medium(mi, ray_o, ray_d, ray_tmax);
+                let end = hit.as_ref().map_or(ray_tmax, |h| h.t);
+                let (collision, w) = het.sample_flight(ray_o, ray_d, end, rng);
+                beta *= w;
+                d_beta *= w;
+                match collision {
+                    Some(c) => {
+                        si = None;
+                        // The albedo there: the render's factor on the volume (1 as
+                        // loaded) times the volume's value; the gradient is the
+                        // factor's, so the vertex weighs c.albedo beside it.
+                        d_beta_before = d_beta * albedo * c.albedo;
                         let (a, b) = settings.gradient.vertex_factors(mi, albedo);
-                        d_beta = d_beta * w * a + beta * w * b;
-                        beta *= w * albedo;
-                        r_u *= w;
+                        d_beta = (d_beta * a + beta * b) * c.albedo;
+                        beta *= albedo * c.albedo;
                         in_medium = true;
+                        (c.t, 0.0)
                     }
                     None => {
-                        // Left through the far end of the ray without a collision.
-                        let tr = m.transmittance(ray_tmax);
-                        let w = tr / tr[hero];
-                        beta *= w;
-                        d_beta *= w;
-                        r_u *= w;
+                        si = hit;
+                        (end, 0.0)
                     }
                 }
-                // Keep mean(r) = 1: scaling β and r alike leaves β / mean(r) and every later
-                // update unchanged, and keeps both bounded on long chromatic paths.
-                let k = mean(r_u);
-                beta /= k;
-                d_beta /= k;
-                d_beta_before /= k;
-                r_u /= k;
-            }
+            } else {
+                let t = m.sample_distance(hero, rng.next_1d());
+                // Within the clearance no surface can be hit: the cast's answer is known.
+                // In a convex medium the distance to its one shape is a clearance too, and
+                // an exact one. Shadow rays are still played against the grid's alone
+                // (below): against the convex one, the medium cube's shadow roulette cost
+                // more in variance (+6% MSE) than it saved in time (−2%).
+                let clearance = scene.clearance.at(ray_o);
+                let convex = scene.convex_media[mi as usize].as_ref();
+                let skip_within = convex.map_or(clearance, |b| {
+                    b.clearance(&scene.geometries, ray_o).max(clearance)
+                });
+                // Where the ray may end on an area emitter, it is cast in full (not only up
+                // to t, nor skipped within the clearance), so the emission there can be
+                // counted in expectation.
+                si = if scene.may_see_area_emitter(mi, ray_o, ray_d) {
+                    let full = scene.intersect_in_medium(mi, ray_o, ray_d, ray_tmax);
+                    // ---- Emission at the segment's end, in expectation ----
+                    // The flight passes to the hit with probability T_hero(h.t) and then weighs the
+                    // emission by β T / mean(r T) (see the module comment): count that
+                    // product now instead of its 0-or-1 sample, and not again at the hit.
+                    if let Some(h) = &full {
+                        let le = emission_seen(scene, Some(h), ray_d, depth, specular_chain, &last);
+                        if le != Vec3::ZERO {
+                            let tr = m.transmittance(h.t);
+                            let pass = tr * (tr[hero] / mean(r_u * tr));
+                            if pass.is_finite() {
+                                result += beta * pass * le;
+                                d_result += d_beta * pass * le;
+                            }
+                            emission_counted = true;
+                        }
+                    }
+                    full.filter(|h| h.t < t)
+                } else if t < skip_within {
+                    None
+                } else {
+                    scene.intersect_in_medium(mi, ray_o, ray_d, t.min(ray_tmax))
+                };
+                let collided = si.is_none() && t.is_finite() && t <= ray_tmax;
+                if m.is_grey() {
+                    // Grey σ_t: f and every p_c are alike, so w = T / T = 1 for passing and
+                    // σ_t T / (σ_t T) = 1 for a collision (exactly, in floating point too):
+                    // only α is left, r is unchanged, and no transmittance is needed.
+                    if collided {
+                        d_beta_before = d_beta * albedo;
+                        let (a, b) = settings.gradient.vertex_factors(mi, albedo);
+                        d_beta = d_beta * a + beta * b;
+                        beta *= albedo;
+                        in_medium = true;
+                    }
+                } else {
+                    match si {
+                        Some(h) => {
+                            // Passed the whole segment: f = T, p_c = T_c.
+                            let tr = m.transmittance(h.t);
+                            let w = tr / tr[hero];
+                            beta *= w;
+                            d_beta *= w;
+                            r_u *= w;
+                        }
+                        None if collided => {
+                            // Collision at t: f = T σ_t α, p_c = σ_t,c T_c.
+                            let tr = m.transmittance(t);
+                            let p_hero = m.sigma_t[hero] * tr[hero];
+                            let w = tr * m.sigma_t / p_hero;
+                            // d(β w α)/dα = dβ w α + β w in the chosen medium.
+                            d_beta_before = d_beta * w * albedo;
+                            let (a, b) = settings.gradient.vertex_factors(mi, albedo);
+                            d_beta = d_beta * w * a + beta * w * b;
+                            beta *= w * albedo;
+                            r_u *= w;
+                            in_medium = true;
+                        }
+                        None => {
+                            // Left through the far end of the ray without a collision.
+                            let tr = m.transmittance(ray_tmax);
+                            let w = tr / tr[hero];
+                            beta *= w;
+                            d_beta *= w;
+                            r_u *= w;
+                        }
+                    }
+                    // Keep mean(r) = 1: scaling β and r alike leaves β / mean(r) and every later
+                    // update unchanged, and keeps both bounded on long chromatic paths.
+                    let k = mean(r_u);
+                    beta /= k;
+                    d_beta /= k;
+                    d_beta_before /= k;
+                    r_u /= k;
+                }
+                (t, clearance)
+            };
             if !beta.is_finite() || !r_u.is_finite() || !d_beta.is_finite() {
                 break;
             }
@@ -549,12 +616,12 @@ pub fn sample(
 
         // ---- Emitter sampling from the surface ----
         if bsdf.is_smooth() && n_emitters > 0 && depth + 1 < s.max_depth {
+            let u = rng.next_2d();
             let transmittance = |o, d, dist| {
-                shadow_transmittance(scene, o, d, dist, medium_after(info, h.n, d, medium))
+                let m = medium_after(info, h.n, d, medium);
+                shadow_transmittance(scene, o, d, dist, m, rng)
             };
-            if let Some(ls) =
-                sample_light_at_surface(scene, &h, wi, bsdf, rng.next_2d(), transmittance)
-            {
+            if let Some(ls) = sample_light_at_surface(scene, &h, wi, bsdf, u, transmittance) {
                 let w = if ls.delta {
                     1.0
                 } else {

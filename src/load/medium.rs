@@ -31,7 +31,7 @@ impl Builder<'_> {
                 ),
             )
             .with_hint(
-                "a grid or other spatially varying volume makes the medium heterogeneous, which mediareg does not render; give a <float>, <rgb> or <spectrum>, or a constvolume",
+                "for a sigma_t that varies in space use <medium type=\"heterogeneous\"> (its sigma_t and albedo take volumes); a homogeneous medium takes a <float>, <rgb>, <spectrum> or constvolume",
             ));
         }
         let value = v.color_nonneg_as("value", Vec3::ONE, SpectrumUse::Unbounded)?;
@@ -46,10 +46,14 @@ impl Builder<'_> {
             return Ok(i);
         }
         let p = Props::new(self.desc, id);
+        // A medium that varies in space: `heterogeneous`, or a grid albedo.
+        if p.obj.plugin == "heterogeneous"
+            || (p.obj.plugin == "homogeneous" && super::volume::is_grid(&p, "albedo"))
+        {
+            return self.heterogeneous_medium(id, p);
+        }
         if p.obj.plugin != "homogeneous" {
-            return Err(unsupported(&p, "medium", "homogeneous").with_hint(
-                "heterogeneous (grid) media are out of scope; mediareg supports homogeneous media",
-            ));
+            return Err(unsupported(&p, "medium", "homogeneous, heterogeneous"));
         }
         // Both are Mitsuba volumes (`constvolume`), whose values are unbounded textures.
         let albedo = self.volume_constant(&p, "albedo", Vec3::splat(0.75))?;
@@ -88,10 +92,7 @@ impl Builder<'_> {
             )
             .with_hint("remove has_spectral_extinction (default true), or give a grey sigma_t"));
         }
-        let phase = match p.child_of(ObjectKind::Phase)? {
-            Some(c) => self.phase(c.object)?,
-            None => Phase::Isotropic,
-        };
+        let phase = self.medium_phase(&p)?;
         let medium_id = p.obj.id.clone();
         p.finish("albedo, sigma_t, scale, sample_emitters, has_spectral_extinction, phase")?;
         self.media.push(HomogeneousMedium {
@@ -100,10 +101,19 @@ impl Builder<'_> {
             phase,
             sample_emitters,
             id: medium_id,
+            heterogeneous: None,
         });
         let i = self.media.len() as u32 - 1;
         self.medium_ids.insert(id, i);
         Ok(i)
+    }
+
+    /// The medium's nested phase function (`isotropic` when none is given).
+    pub(super) fn medium_phase(&self, p: &Props) -> Result<Phase> {
+        match p.child_of(ObjectKind::Phase)? {
+            Some(c) => self.phase(c.object),
+            None => Ok(Phase::Isotropic),
+        }
     }
 
     /// Mitsuba's `isotropic` and `hg` phase functions (nested in a medium, or declared

@@ -7,6 +7,7 @@
 
 mod bsdf;
 mod emitter;
+mod heterogeneous;
 mod instance;
 mod integrator;
 mod medium;
@@ -15,6 +16,7 @@ mod sensor;
 mod shape;
 pub mod spectrum;
 mod texture;
+mod volume;
 
 use std::collections::HashMap;
 use std::path::Path;

@@ -166,7 +166,7 @@ impl<'a> Props<'a> {
                 ),
             );
             return Err(if o.kind == ObjectKind::Volume {
-                e.with_hint("a volume makes the medium vary in space (heterogeneous), which is out of scope: mediareg renders homogeneous media")
+                e.with_hint("for a property that varies in space use <medium type=\"heterogeneous\"> (its sigma_t and albedo take volumes)")
             } else {
                 e
             });

@@ -1,5 +1,7 @@
 //! Participating media: Mitsuba 3's `homogeneous` medium (`src/media/homogeneous.cpp`)
 //! with the `hg` or `isotropic` phase function (`src/phase/hg.cpp`).
+//! Media that vary in space (`heterogeneous`, volumes from `grid`) are tracked
+//! instead (`heterogeneous`); this file's sampling is the homogeneous case.
 //!
 //! Free-flight distances are sampled from σ_t of one colour channel (Mitsuba's
 //! `Medium::sample_interaction`), never from the albedo: `t = −ln(1 − u) / σ_t[c]`,
@@ -7,10 +9,13 @@
 //! a whole segment of length `s`. Transmittance along a segment is `e^{−σ_t s}` per
 //! channel (Beer–Lambert).
 
+pub mod grid;
+pub mod heterogeneous;
 pub mod phase;
 
 use glam::Vec3;
 
+pub use heterogeneous::HeterogeneousMedium;
 pub use phase::Phase;
 
 #[derive(Clone, Debug)]
@@ -25,6 +30,12 @@ pub struct HomogeneousMedium {
     pub sample_emitters: bool,
     /// The XML `id`, to name the medium (e.g. `--gradient albedo --medium ID`).
     pub id: Option<String>,
+    /// Set for a medium that varies in space (`heterogeneous`, or a volume albedo):
+    /// the volpath then tracks it (`heterogeneous`), and `sigma_t` above holds its
+    /// majorant (an upper bound), `albedo` a global factor on its albedo volume (1 as
+    /// loaded; the albedo gradient is with respect to it). None: the homogeneous
+    /// medium, rendered by the code paths for it.
+    pub heterogeneous: Option<Box<HeterogeneousMedium>>,
 }
 
 impl HomogeneousMedium {
@@ -89,6 +100,7 @@ mod tests {
             phase: Phase::Isotropic,
             sample_emitters: true,
             id: None,
+            heterogeneous: None,
         };
         let n = 200_000;
         for (c, want) in [(0, 0.5f64), (1, 0.2)] {

@@ -27,7 +27,9 @@ pub fn expected_path_vertices(scene: &Scene) -> Option<(f64, String)> {
         .iter()
         .enumerate()
         .map(|(i, m)| {
-            let albedo = m.albedo.max_element() as f64;
+            // A heterogeneous medium's albedo: the factor on its volume times its largest value.
+            let volume_max = m.heterogeneous.as_ref().map_or(1.0, |h| h.albedo.max);
+            let albedo = (m.albedo.max_element() * volume_max) as f64;
             let tau = m.sigma_t.max_element() as f64 * scene.offset_scale as f64;
             let absorbed = if albedo < 1.0 {
                 1.0 / (1.0 - albedo)

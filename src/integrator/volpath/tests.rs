@@ -198,7 +198,7 @@ fn crossings_in_one_traversal_give_the_exact_transmittance() {
                 }
                 Crossings::Unsupported => panic!("unsupported without thin dielectrics"),
             }
-            let tr = shadow_transmittance(&scene, o, d, dist, medium);
+            let tr = shadow_transmittance(&scene, o, d, dist, medium, &mut Pcg32::new(1, 1));
             let want = exact(o, d, dist, medium, cubes);
             assert!(
                 (tr - want).abs().max_element() <= 1e-4 * want.max_element() + 1e-6,
@@ -235,7 +235,7 @@ fn a_crossing_found_twice_on_a_shared_edge_counts_once() {
             // (the rules do not check): 1.5 units of it, then the cube's 1 unit,
             // then none after leaving it.
             for (medium, depth) in [(None, 1.0f32), (Some(0), 2.5)] {
-                let tr = shadow_transmittance(&scene, o, d, 4.0, medium);
+                let tr = shadow_transmittance(&scene, o, d, 4.0, medium, &mut Pcg32::new(1, 1));
                 let want = (-2.0 * depth).exp();
                 assert!(
                     (tr.x - want).abs() < 1e-3 * want,

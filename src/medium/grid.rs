@@ -1,0 +1,345 @@
+//! Mitsuba 3's volume data sources (`src/volumes/grid.cpp`, `src/volumes/const.cpp`):
+//! a value per point of space, constant or interpolated in a 3D grid read from
+//! Mitsuba's binary `.vol` file (`src/render/volumegrid.cpp`).
+//!
+//! A volume lives in its local unit cube [0, 1]³, placed in the world by its
+//! `to_world`; its bounding box is that cube's image (`Volume::update_bbox`), which a
+//! `heterogeneous` medium uses as the extent of its extinction.
+//!
+//! Lookups follow Dr.Jit's `Texture3f` (`drjit/texture.h`): for `trilinear`, the local
+//! point scaled to voxel units less one half, `x = p · res − 0.5`, is split into
+//! `⌊x⌋` and weights `x − ⌊x⌋`, and the 8 voxel indices are wrapped (`clamp`, `repeat`,
+//! `mirror`) before fetching; for `nearest`, the voxel `⌊p · res⌋`, wrapped.
+
+use glam::{Affine3A, Vec3, Vec3A};
+
+/// The `.vol` header's size: "VOL", version, encoding, 3 resolutions, channels, bbox.
+pub const VOL_HEADER_BYTES: usize = 3 + 1 + 4 + 3 * 4 + 4 + 6 * 4;
+
+/// How a lookup between voxels is filtered (Mitsuba's `filter_type`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Filter {
+    Trilinear,
+    Nearest,
+}
+
+/// What a lookup outside [0, 1]³ reads (Mitsuba's `wrap_mode`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Wrap {
+    Clamp,
+    Repeat,
+    Mirror,
+}
+
+impl Wrap {
+    #[inline]
+    fn index(self, i: i32, n: i32) -> usize {
+        (match self {
+            Wrap::Clamp => i.clamp(0, n - 1),
+            Wrap::Repeat => i.rem_euclid(n),
+            Wrap::Mirror => {
+                let m = i.rem_euclid(2 * n);
+                if m >= n {
+                    2 * n - 1 - m
+                } else {
+                    m
+                }
+            }
+        }) as usize
+    }
+}
+
+/// Voxel data of a `.vol` file: `data[((z · ny + y) · nx + x) · channels + c]`.
+#[derive(Clone, Debug)]
+pub struct GridData {
+    pub res: [usize; 3],
+    /// 1 (a scalar, read as grey) or 3 (RGB).
+    pub channels: usize,
+    pub data: Vec<f32>,
+    /// The bounding box stored in the file (used with `use_grid_bbox`).
+    pub file_bbox: [Vec3; 2],
+}
+
+impl GridData {
+    /// The largest value over all voxels and channels (Mitsuba's `VolumeGrid::max`).
+    pub fn max(&self) -> f32 {
+        self.data.iter().copied().fold(f32::NEG_INFINITY, f32::max)
+    }
+}
+
+/// Why a `.vol` file cannot be read.
+#[derive(Debug, PartialEq)]
+pub enum VolError {
+    NotVol,
+    Version(u8),
+    Encoding(i32),
+    Size { res: [i64; 3], channels: i64 },
+    Truncated { expected: u64, found: u64 },
+    BadValue { index: usize, value: f32 },
+}
+
+impl std::fmt::Display for VolError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            VolError::NotVol => write!(f, "not a Mitsuba volume file (it does not start with \"VOL\")"),
+            VolError::Version(v) => write!(f, "version {v}: only version 3 is supported"),
+            VolError::Encoding(e) => write!(f, "encoding {e}: only 1 (float32) is supported"),
+            VolError::Size { res, channels } => write!(
+                f,
+                "header gives {}×{}×{} voxels of {channels} channels: each resolution must be ≥ 1, the channels 1 or 3, and the grid at most 2^30 values",
+                res[0], res[1], res[2]
+            ),
+            VolError::Truncated { expected, found } => write!(
+                f,
+                "truncated: the header promises {expected} bytes, the file has {found}"
+            ),
+            VolError::BadValue { index, value } => write!(
+                f,
+                "value #{index} is {value}: volume values must be finite and nonnegative"
+            ),
+        }
+    }
+}
+
+/// The most values a grid may hold (4 GiB of f32): a header asking for more is refused
+/// before anything is allocated.
+pub const MAX_GRID_VALUES: u64 = 1 << 30;
+
+/// Parses a `.vol` file's bytes. The header is checked against the file's length
+/// before the voxel buffer is allocated, so a corrupt header cannot ask for gigabytes.
+pub fn parse_vol(bytes: &[u8]) -> Result<GridData, VolError> {
+    if bytes.len() < 4 || &bytes[..3] != b"VOL" {
+        return Err(VolError::NotVol);
+    }
+    if bytes[3] != 3 {
+        return Err(VolError::Version(bytes[3]));
+    }
+    if bytes.len() < VOL_HEADER_BYTES {
+        return Err(VolError::Truncated {
+            expected: VOL_HEADER_BYTES as u64,
+            found: bytes.len() as u64,
+        });
+    }
+    let i32_at = |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+    let encoding = i32_at(4);
+    if encoding != 1 {
+        return Err(VolError::Encoding(encoding));
+    }
+    let res = [i32_at(8) as i64, i32_at(12) as i64, i32_at(16) as i64];
+    let channels = i32_at(20) as i64;
+    let count = res.iter().product::<i64>().saturating_mul(channels.max(0));
+    if res.iter().any(|&r| r < 1)
+        || !(channels == 1 || channels == 3)
+        || count as u64 > MAX_GRID_VALUES
+    {
+        return Err(VolError::Size { res, channels });
+    }
+    let expected = VOL_HEADER_BYTES as u64 + 4 * count as u64;
+    if (bytes.len() as u64) < expected {
+        return Err(VolError::Truncated {
+            expected,
+            found: bytes.len() as u64,
+        });
+    }
+    let b: Vec<f32> = (0..6).map(|k| f32_at(24 + 4 * k)).collect();
+    let mut data = Vec::with_capacity(count as usize);
+    for (index, c) in bytes[VOL_HEADER_BYTES..expected as usize]
+        .chunks_exact(4)
+        .enumerate()
+    {
+        let value = f32::from_le_bytes(c.try_into().unwrap());
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(VolError::BadValue { index, value });
+        }
+        data.push(value);
+    }
+    Ok(GridData {
+        res: res.map(|r| r as usize),
+        channels: channels as usize,
+        data,
+        file_bbox: [Vec3::new(b[0], b[1], b[2]), Vec3::new(b[3], b[4], b[5])],
+    })
+}
+
+/// Where a volume's values come from.
+#[derive(Clone, Debug)]
+pub enum Source {
+    /// `constvolume` (or a plain `<float>`/`<rgb>`): one value everywhere.
+    Const(Vec3),
+    Grid {
+        grid: GridData,
+        filter: Filter,
+        wrap: Wrap,
+    },
+}
+
+/// A volume: its values and where its unit cube lies.
+#[derive(Clone, Debug)]
+pub struct Volume {
+    pub source: Source,
+    /// World → the volume's unit cube (Mitsuba's `m_to_local`).
+    pub to_local: Affine3A,
+    /// World-space bounding box of the unit cube's image.
+    pub bbox: [Vec3; 2],
+    /// The largest value over space and channels (Mitsuba's `Volume::max`).
+    pub max: f32,
+}
+
+impl Volume {
+    /// A volume placed by `to_world` (the unit cube's image is its box).
+    pub fn new(source: Source, to_world: Affine3A) -> Self {
+        let mut lo = Vec3::INFINITY;
+        let mut hi = Vec3::NEG_INFINITY;
+        for k in 0..8 {
+            let c = Vec3::new((k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32);
+            let w = to_world.transform_point3(c);
+            lo = lo.min(w);
+            hi = hi.max(w);
+        }
+        let max = match &source {
+            Source::Const(v) => v.max_element(),
+            Source::Grid { grid, .. } => grid.max(),
+        };
+        Volume {
+            source,
+            to_local: to_world.inverse(),
+            bbox: [lo, hi],
+            max,
+        }
+    }
+
+    /// Whether every point has equal channels (a 1-channel grid or a grey constant).
+    pub fn is_grey(&self) -> bool {
+        match &self.source {
+            Source::Const(v) => v.x == v.y && v.y == v.z,
+            Source::Grid { grid, .. } => grid.channels == 1,
+        }
+    }
+
+    /// The value at world point `p`.
+    #[inline]
+    pub fn eval(&self, p: Vec3A) -> Vec3 {
+        match &self.source {
+            Source::Const(v) => *v,
+            Source::Grid { grid, filter, wrap } => {
+                let q = Vec3::from(self.to_local.transform_point3a(p));
+                lookup(grid, *filter, *wrap, q)
+            }
+        }
+    }
+}
+
+#[inline]
+fn fetch(g: &GridData, x: usize, y: usize, z: usize) -> Vec3 {
+    let i = ((z * g.res[1] + y) * g.res[0] + x) * g.channels;
+    if g.channels == 1 {
+        Vec3::splat(g.data[i])
+    } else {
+        Vec3::new(g.data[i], g.data[i + 1], g.data[i + 2])
+    }
+}
+
+/// The grid's value at local point `q` (unit cube coordinates).
+fn lookup(g: &GridData, filter: Filter, wrap: Wrap, q: Vec3) -> Vec3 {
+    let n = [g.res[0] as i32, g.res[1] as i32, g.res[2] as i32];
+    let res = Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32);
+    match filter {
+        Filter::Nearest => {
+            let x = (q * res).floor();
+            let i = |k: usize, v: f32| wrap.index(v as i32, n[k]);
+            fetch(g, i(0, x.x), i(1, x.y), i(2, x.z))
+        }
+        Filter::Trilinear => {
+            let x = q * res - 0.5;
+            let f = x.floor();
+            let w1 = x - f;
+            let w0 = Vec3::ONE - w1;
+            let i0 = [f.x as i32, f.y as i32, f.z as i32];
+            let ix = [wrap.index(i0[0], n[0]), wrap.index(i0[0] + 1, n[0])];
+            let iy = [wrap.index(i0[1], n[1]), wrap.index(i0[1] + 1, n[1])];
+            let iz = [wrap.index(i0[2], n[2]), wrap.index(i0[2] + 1, n[2])];
+            let wx = [w0.x, w1.x];
+            let wy = [w0.y, w1.y];
+            let wz = [w0.z, w1.z];
+            let mut v = Vec3::ZERO;
+            for (c, &z) in iz.iter().enumerate() {
+                for (b, &y) in iy.iter().enumerate() {
+                    for (a, &xx) in ix.iter().enumerate() {
+                        v += fetch(g, xx, y, z) * (wx[a] * wy[b] * wz[c]);
+                    }
+                }
+            }
+            v
+        }
+    }
+}
+
+/// A `.vol` file's bytes (for tests and scripts' fixtures): 1 or 3 channels, bbox
+/// [0, 1]³.
+pub fn write_vol(res: [usize; 3], channels: usize, data: &[f32]) -> Vec<u8> {
+    let mut out = b"VOL".to_vec();
+    out.push(3);
+    out.extend_from_slice(&1i32.to_le_bytes());
+    for r in res {
+        out.extend_from_slice(&(r as i32).to_le_bytes());
+    }
+    out.extend_from_slice(&(channels as i32).to_le_bytes());
+    for v in [0.0f32, 0.0, 0.0, 1.0, 1.0, 1.0] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in data {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(res: [usize; 3], data: Vec<f32>) -> Volume {
+        let g = parse_vol(&write_vol(res, 1, &data)).unwrap();
+        Volume::new(
+            Source::Grid {
+                grid: g,
+                filter: Filter::Trilinear,
+                wrap: Wrap::Clamp,
+            },
+            Affine3A::IDENTITY,
+        )
+    }
+
+    #[test]
+    fn trilinear_interpolates_between_voxel_centres_and_clamps() {
+        // 2 voxels along x: centres at 0.25 and 0.75.
+        let v = grid([2, 1, 1], vec![1.0, 3.0]);
+        let at = |x: f32| v.eval(Vec3A::new(x, 0.5, 0.5)).x;
+        assert_eq!(at(0.25), 1.0);
+        assert_eq!(at(0.75), 3.0);
+        assert!((at(0.5) - 2.0).abs() < 1e-6);
+        assert_eq!(at(0.0), 1.0);
+        assert_eq!(at(1.5), 3.0);
+        assert_eq!(v.max, 3.0);
+    }
+
+    #[test]
+    fn bad_files_are_refused_before_allocating() {
+        let ok = write_vol([2, 2, 2], 1, &[1.0; 8]);
+        assert!(parse_vol(&ok).is_ok());
+        assert!(matches!(
+            parse_vol(&ok[..ok.len() - 1]),
+            Err(VolError::Truncated { .. })
+        ));
+        let mut huge = ok.clone();
+        huge[8..12].copy_from_slice(&(1i32 << 30).to_le_bytes());
+        assert!(matches!(parse_vol(&huge), Err(VolError::Size { .. })));
+        let mut nan = ok.clone();
+        nan[VOL_HEADER_BYTES..VOL_HEADER_BYTES + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert!(matches!(
+            parse_vol(&nan),
+            Err(VolError::BadValue { index: 0, .. })
+        ));
+        assert!(matches!(parse_vol(b"VOX\x03"), Err(VolError::NotVol)));
+    }
+}
