@@ -139,7 +139,10 @@ def test_bad_arguments_raise_and_write_nothing(tmp_path):
 def test_ctrl_c_stops_a_render():
     code = textwrap.dedent(
         f"""
-        import sys, time, mediareg
+        import signal, sys, time, mediareg
+        # A process started in the background by a non-interactive shell inherits SIGINT
+        # ignored, and Python then raises no KeyboardInterrupt: restore its handler.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         s = mediareg.load_file({str(scene('cbox'))!r})
         print("rendering", flush=True)
         try:
