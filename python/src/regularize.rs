@@ -10,7 +10,7 @@ use pyo3::types::PyDict;
 
 use mediareg::regularize::pipeline::PilotSize;
 use mediareg::regularize::sequence::CameraPath;
-use mediareg::regularize::{choices, ChoiceError, Choices, Factor, Method, Motion, Reproject};
+use mediareg::regularize::{choices, ChoiceError, Choices, Method, Motion, Reproject};
 
 use crate::images::to_numpy;
 use crate::render::thread_pool;
@@ -79,16 +79,10 @@ pub fn regularize<'py>(
         None => None,
         Some(f) => {
             let text = param_text(f)?;
-            Some(if text == "auto" {
-                Factor::Auto
-            } else {
-                Factor::Fixed(
-                    text.parse::<f32>()
-                        .ok()
-                        .filter(|v| v.is_finite())
-                        .ok_or_else(|| bad_arg(format!("factor={text}: a number or \"auto\"")))?,
-                )
-            })
+            Some(
+                choices::parse_factor(&text)
+                    .ok_or_else(|| bad_arg(format!("factor={text}: a number or \"auto\"")))?,
+            )
         }
     };
     let motion = match (orbit, dolly, camera_path) {

@@ -44,9 +44,15 @@ impl Ray {
 /// ([`crate::scene::Scene::offset_scale`]), so a scene scaled by s (and σ_t by 1/s)
 /// renders the same image; for a unit-sized scene it is Mitsuba's offset.
 pub fn offset_point(p: Vec3A, n: Vec3A, d: Vec3A, scale: f32) -> Vec3A {
-    let mag = (scale + p.abs().max_element()) * RAY_EPSILON;
+    let mag = offset_magnitude(p, scale);
     let mag = if n.dot(d) >= 0.0 { mag } else { -mag };
     p + n * mag
+}
+
+/// How far [`offset_point`] moves `p` off its surface.
+#[inline]
+pub fn offset_magnitude(p: Vec3A, scale: f32) -> f32 {
+    (scale + p.abs().max_element()) * RAY_EPSILON
 }
 
 /// An orthonormal frame around `n` (Duff et al. 2017, as Mitsuba's `coordinate_system`).

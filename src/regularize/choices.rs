@@ -153,3 +153,14 @@ pub fn parse_c_beta(text: &str, fit_spp: u32, fit_at: f32) -> Option<CBeta> {
         .filter(|c| c.is_finite())
         .map(CBeta::Fixed)
 }
+
+/// The source factor as a caller spells it: a number, or `auto` (chosen by the pilot).
+pub fn parse_factor(text: &str) -> Option<Factor> {
+    if text == "auto" {
+        return Some(Factor::Auto);
+    }
+    text.parse::<f32>()
+        .ok()
+        .filter(|f| f.is_finite())
+        .map(Factor::Fixed)
+}

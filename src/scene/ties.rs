@@ -21,13 +21,13 @@ use super::{Scene, ShapeInfo, SurfaceInteraction};
 use crate::bsdf::Bsdf;
 use crate::geometry::accel::Accel;
 use crate::geometry::shape::Geometry;
-use crate::geometry::{Bounds, RAY_EPSILON};
+use crate::geometry::{offset_magnitude, Bounds};
 
 /// Surfaces closer than this (along the normal) to a point `p` count as coincident:
 /// twice the offset a spawned ray takes ([`crate::geometry::offset_point`]), the
 /// distance below which spawning cannot tell the two apart.
 pub fn tie_distance(p: Vec3A, offset_scale: f32) -> f32 {
-    2.0 * (offset_scale + p.abs().max_element()) * RAY_EPSILON
+    2.0 * offset_magnitude(p, offset_scale)
 }
 
 /// Whether shape `i` is a medium boundary that light passes (a `null` BSDF with an

@@ -9,7 +9,7 @@ use clap::Args;
 use mediareg::image::{self, Image};
 use mediareg::regularize::pipeline::PilotSize;
 use mediareg::regularize::sequence::CameraPath;
-use mediareg::regularize::{self, ChoiceError, Choices, Factor, Method, Motion, Reproject};
+use mediareg::regularize::{self, ChoiceError, Choices, Method, Motion, Reproject};
 
 use crate::common::{
     fmt3, medium_error, parse_point, prepare, regularize_error, sibling, warn_invalid_samples,
@@ -142,16 +142,12 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
             "note: no --orbit, --dolly or --camera-path: the {frames} frames share the sensor and differ only in their noise"
         );
     }
-    let factor = match factor.as_deref() {
-        None => None,
-        Some("auto") => Some(Factor::Auto),
-        Some(f) => Some(Factor::Fixed(
-            f.parse::<f32>()
-                .ok()
-                .filter(|f| f.is_finite())
-                .ok_or_else(|| anyhow!("--factor {f}: expected a number or `auto`"))?,
-        )),
-    };
+    let factor = factor
+        .map(|f| {
+            regularize::choices::parse_factor(&f)
+                .ok_or_else(|| anyhow!("--factor {f}: expected a number or `auto`"))
+        })
+        .transpose()?;
     let choices = Choices {
         medium,
         method,
