@@ -499,10 +499,7 @@ impl Accel {
             } else {
                 e.intersect(o, d, t_best)
             };
-            return match found {
-                Some((leaf, t, u, v)) => Some(self.hit(leaf as usize, t, u, v)),
-                None => best,
-            };
+            return found.or(best);
         }
         #[cfg(not(feature = "embree"))]
         let _ = filtered;

@@ -16,6 +16,8 @@ use std::ptr;
 use embree::sys;
 use glam::Vec3A;
 
+use super::Hit;
+
 /// An Embree device and the committed scene of the accelerator's triangles.
 pub(crate) struct EmbreeScene {
     device: sys::RTCDevice,
@@ -210,10 +212,13 @@ impl EmbreeScene {
         format!("Embree: {call} failed ({code:?})")
     }
 
-    /// Closest hit along `o + t d`, t ≤ tmax: (leaf, t, u, v), u and v the
-    /// barycentrics of vertices 1 and 2 (as the accelerator's own test gives them).
+    /// Closest hit along `o + t d`, t ≤ tmax, u and v the barycentrics of vertices 1
+    /// and 2 (as the accelerator's own test gives them). Its shape and triangle come
+    /// from Embree's geometry and primitive ids (tables of one entry per mesh), not
+    /// from the accelerator's per-triangle table: on a large mesh that read missed
+    /// the cache on most hits.
     #[inline(always)]
-    pub(crate) fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(u32, f32, f32, f32)> {
+    pub(crate) fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<Hit> {
         let mut ctx = context();
         self.intersect_with(&mut ctx, o, d, tmax)
     }
@@ -225,7 +230,7 @@ impl EmbreeScene {
         d: Vec3A,
         tmax: f32,
         keep: &mut dyn FnMut(Candidate) -> bool,
-    ) -> Option<(u32, f32, f32, f32)> {
+    ) -> Option<Hit> {
         let mut ctx = FilterContext {
             base: sys::RTCIntersectContext {
                 filter: Some(filter),
@@ -244,7 +249,7 @@ impl EmbreeScene {
         o: Vec3A,
         d: Vec3A,
         tmax: f32,
-    ) -> Option<(u32, f32, f32, f32)> {
+    ) -> Option<Hit> {
         let mut rh = sys::RTCRayHit {
             ray: ray(o, d, tmax),
             hit: sys::RTCHit {
@@ -262,13 +267,13 @@ impl EmbreeScene {
         // FilterContext that outlives the call.
         unsafe { sys::rtcIntersect1(self.scene, ctx, &mut rh) };
         let h = rh.hit;
-        (h.geomID != INVALID_ID).then(|| {
-            (
-                self.first_leaf[h.geomID as usize] + h.primID,
-                rh.ray.tfar,
-                h.u,
-                h.v,
-            )
+        (h.geomID != INVALID_ID).then(|| Hit {
+            t: rh.ray.tfar,
+            shape: self.shape[h.geomID as usize],
+            prim: h.primID,
+            u: h.u,
+            v: h.v,
+            leaf: self.first_leaf[h.geomID as usize] + h.primID,
         })
     }
 
