@@ -537,17 +537,25 @@ impl Accel {
             } else {
                 i as u32
             },
+            ng: [0.0; 3],
         }
     }
 
-    /// The point at barycentrics (u, v) of a hit triangle and its unit geometric normal
-    /// (p1 − p0) × (p2 − p0), from the copy the hit test has just read: no lookups in
-    /// the mesh (where a surface needs no shading frame, see `Scene::intersect`).
+    /// The point of a triangle hit of `o + t d` and its unit geometric normal
+    /// (p1 − p0) × (p2 − p0), with no lookups in the mesh (where a surface needs no
+    /// shading frame, see `Scene::intersect`). Where the ray caster gave the normal
+    /// (Embree), the point is o + t d: reading the triangle for its barycentric point
+    /// missed the cache on most hits of a large mesh, and the spawn offset
+    /// (`geometry::offset_magnitude`) is far larger than the difference. Else both
+    /// come from the copy the hit test has just read.
     #[inline]
-    pub fn triangle_surface(&self, leaf: u32, u: f32, v: f32) -> (Vec3A, Vec3A) {
-        let t = &self.triangles[leaf as usize];
+    pub fn triangle_surface(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> (Vec3A, Vec3A) {
+        if hit.ng != [0.0; 3] {
+            return (o + d * hit.t, Vec3A::from_array(hit.ng).normalize_or_zero());
+        }
+        let t = &self.triangles[hit.leaf as usize];
         (
-            t.p0 + t.e1 * u + t.e2 * v,
+            t.p0 + t.e1 * hit.u + t.e2 * hit.v,
             t.e1.cross(t.e2).normalize_or_zero(),
         )
     }

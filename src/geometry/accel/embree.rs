@@ -274,6 +274,7 @@ impl EmbreeScene {
             u: h.u,
             v: h.v,
             leaf: self.first_leaf[h.geomID as usize] + h.primID,
+            ng: [h.Ng_x, h.Ng_y, h.Ng_z],
         })
     }
 

@@ -114,7 +114,7 @@ fn rays(g: &[Geometry], accel: &Accel, n: usize) -> Vec<(Vec3A, Vec3A, f32)> {
         if i % 3 != 2 {
             if let Some(h) = accel.intersect(g, o, d, f32::INFINITY) {
                 if h.leaf != u32::MAX {
-                    from = Some(accel.triangle_surface(h.leaf, h.u, h.v));
+                    from = Some(accel.triangle_surface(o, d, &h));
                 }
             }
         }
@@ -163,8 +163,8 @@ fn closest_hit_and_occlusion_match_obvhs() {
                     "{why}"
                 );
                 if a.leaf != u32::MAX {
-                    let (pa, na) = ours.triangle_surface(a.leaf, a.u, a.v);
-                    let (pb, nb) = embree.triangle_surface(b.leaf, b.u, b.v);
+                    let (pa, na) = ours.triangle_surface(o, d, &a);
+                    let (pb, nb) = embree.triangle_surface(o, d, &b);
                     assert!(
                         (pa - pb).length() < 1e-4 && (na - nb).length() < 1e-4,
                         "{why}"

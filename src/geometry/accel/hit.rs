@@ -16,6 +16,10 @@ pub struct Hit {
     /// The triangle's place in the accelerator's own copy ([`super::Accel::triangle_surface`]),
     /// `u32::MAX` for analytic shapes.
     pub leaf: u32,
+    /// The triangle's geometric normal (p1 − p0) × (p2 − p0), not normalised, where the
+    /// ray caster gives it with the hit (Embree); zero where it does not (then
+    /// [`super::Accel::triangle_surface`] reads it from the accelerator's copy).
+    pub ng: [f32; 3],
 }
 
 impl Hit {
@@ -29,6 +33,7 @@ impl Hit {
             u: 0.0,
             v: 0.0,
             leaf: u32::MAX,
+            ng: [0.0; 3],
         }
     }
 }
@@ -84,5 +89,6 @@ pub(in crate::geometry) fn cuboid_hit(c: &Cuboid, h: CuboidHit) -> Hit {
         u: h.u,
         v: h.v,
         leaf: h.leaf,
+        ng: [0.0; 3],
     }
 }
