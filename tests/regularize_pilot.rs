@@ -73,9 +73,9 @@ fn add(a: &[[f32; 3]], b: &[[f32; 3]]) -> Vec<[f32; 3]> {
 /// The pilot at `table`'s settings (11 frames, w_a 0.1, the spatial filter, 8 renders of
 /// 1 spp per candidate) for a run of `n` spp of mitsuba_scenes/`name`.xml.
 /// Also the number of values (pixels × channels) the pilot's sums run over.
-fn pilot_of(name: &str, n: u32) -> (pilot::Pilot, f64) {
+fn pilot_of(name: &str, params: &[(&str, &str)], n: u32) -> (pilot::Pilot, f64) {
     let path = root().join(format!("mitsuba_scenes/{name}.xml"));
-    let scene = load_seeded(&path, &[], n, 0);
+    let scene = load_seeded(&path, params, n, 0);
     let params = BilateralParams::default();
     let features = spatial::first_hit_features(&scene, &scene.shot);
     let (w, h) = scene.shot.film.crop_size;
@@ -89,7 +89,7 @@ fn pilot_of(name: &str, n: u32) -> (pilot::Pilot, f64) {
 /// its bias estimate was bounded (P2) it chose 0.4/0.4/0.5 here, and the run lost ×3.
 #[test]
 fn cloud_pilot_keeps_plain_volpath() {
-    let (p, _) = pilot_of("cloud", 620);
+    let (p, _) = pilot_of("cloud", &[], 620);
     assert_eq!(p.factor, [1.0; 3], "the pilot chose {:?}", p.factor);
 }
 
@@ -97,7 +97,7 @@ fn cloud_pilot_keeps_plain_volpath() {
 /// method gains, the same pilot does pick a low factor in every channel.
 #[test]
 fn dense_cube_pilot_picks_the_method() {
-    let (p, _) = pilot_of("medium_cube", 256);
+    let (p, _) = pilot_of("medium_cube", &[], 256);
     assert!(
         p.factor.iter().all(|&f| f <= 0.5),
         "the pilot chose {:?}",
@@ -154,13 +154,17 @@ fn measure_cloud() {
 
 /// `cargo test --release --test regularize_pilot -- --ignored --nocapture print_pilot`:
 /// the pilot's estimates at the table's settings on $PILOT_SCENE (default the cloud) for a
-/// run of $PILOT_N spp (default 620, what a 10 s budget bought on the cloud).
+/// run of $PILOT_N spp (default 620, what a 10 s budget bought on the cloud), with the
+/// scene parameters $PILOT_PARAMS.
 #[test]
 #[ignore]
 fn print_pilot() {
     let name = std::env::var("PILOT_SCENE").unwrap_or_else(|_| "cloud".into());
     let spp = std::env::var("PILOT_N").map_or(620, |v| v.parse().expect("PILOT_N"));
-    let (pl, pixels) = pilot_of(&name, spp);
+    // $PILOT_PARAMS: name=value,name=value (-D).
+    let params = std::env::var("PILOT_PARAMS").unwrap_or_default();
+    let params: Vec<(&str, &str)> = params.split(',').filter_map(|kv| kv.split_once('=')).collect();
+    let (pl, pixels) = pilot_of(&name, &params, spp);
     println!("\n{name}: pilot (8 × 1 spp, N = {spp}): chose {:?}", pl.factor);
     println!("| factor | Var R_s | Var D | Var F D | bias² | s/spp | E(f) (all per pixel and channel) |");
     println!("|---|---:|---:|---:|---:|---:|---:|");

@@ -42,10 +42,11 @@
 //!   SE² ≈ Σ_j 2 s_j⁴ (1 + 1/(chunks − 1)),  s_j² = Var(D̄_j) Σ_i (F − I)_ij²,      (P2)
 //!
 //! (the squared norm's variance, and the spread of the chunks' variance estimate). On
-//! the cloud (docs/regularize.md) the filter's true bias was 7.5e-5 to 4.9e-4 per value,
-//! at the pilot's 8 spp far below its noise; the point estimate, clamped at 0, chose
-//! factors 0.4/0.5 that lost ×3 to plain volpath, the bound keeps factor 1. The
-//! candidates stop at 0.2: below, the denoising would do nearly all the work.
+//! the cloud (docs/regularize.md) the spatial filter's squared bias was 5.5e-5 to
+//! 2.2e-4 per value, at the pilot's 8 spp far below its noise; the point estimate,
+//! clamped at 0, chose factors 0.4/0.5 that lost ×3 to plain volpath, the bound keeps
+//! factor 1. The temporal blend's bias is not estimated (the pilot renders one view).
+//! The candidates stop at 0.2: below, the denoising would do nearly all the work.
 
 use super::spatial::{self, BilateralParams, Features};
 use crate::image::stats::{Estimate, PixelLayout};
