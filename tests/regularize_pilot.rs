@@ -73,13 +73,23 @@ fn add(a: &[[f32; 3]], b: &[[f32; 3]]) -> Vec<[f32; 3]> {
 /// The pilot at `table`'s settings (11 frames, w_a 0.1, the spatial filter, 8 renders of
 /// 1 spp per candidate) for a run of `n` spp of mitsuba_scenes/`name`.xml.
 /// Also the number of values (pixels × channels) the pilot's sums run over.
-fn pilot_of(name: &str, params: &[(&str, &str)], n: u32) -> (pilot::Pilot, f64) {
+fn pilot_of(name: &str, params: &[(&str, &str)], n: u32, seed: u64) -> (pilot::Pilot, f64) {
     let path = root().join(format!("mitsuba_scenes/{name}.xml"));
-    let scene = load_seeded(&path, params, n, 0);
+    let scene = load_seeded(&path, params, n, seed);
     let params = BilateralParams::default();
     let features = spatial::first_hit_features(&scene, &scene.shot);
     let (w, h) = scene.shot.film.crop_size;
-    let p = pilot::choose_factor(&scene, &scene.shot, 0, 11, 0.1, Some(&params), &features, 8, 1);
+    let p = pilot::choose_factor(
+        &scene,
+        &scene.shot,
+        0,
+        11,
+        0.1,
+        Some(&params),
+        &features,
+        8,
+        1,
+    );
     (p, (3 * w * h) as f64)
 }
 
@@ -89,7 +99,7 @@ fn pilot_of(name: &str, params: &[(&str, &str)], n: u32) -> (pilot::Pilot, f64) 
 /// its bias estimate was bounded (P2) it chose 0.4/0.4/0.5 here, and the run lost ×3.
 #[test]
 fn cloud_pilot_keeps_plain_volpath() {
-    let (p, _) = pilot_of("cloud", &[], 620);
+    let (p, _) = pilot_of("cloud", &[], 620, 0);
     assert_eq!(p.factor, [1.0; 3], "the pilot chose {:?}", p.factor);
 }
 
@@ -97,7 +107,7 @@ fn cloud_pilot_keeps_plain_volpath() {
 /// method gains, the same pilot does pick a low factor in every channel.
 #[test]
 fn dense_cube_pilot_picks_the_method() {
-    let (p, _) = pilot_of("medium_cube", &[], 256);
+    let (p, _) = pilot_of("medium_cube", &[], 256, 0);
     assert!(
         p.factor.iter().all(|&f| f <= 0.5),
         "the pilot chose {:?}",
@@ -111,7 +121,12 @@ fn dense_cube_pilot_picks_the_method() {
 #[test]
 #[ignore]
 fn measure_cloud() {
-    let env = |k: &str, d: u64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
+    let env = |k: &str, d: u64| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(d)
+    };
     let seeds = env("MEASURE_SEEDS", 4);
     let spp = env("MEASURE_SPP", 256) as u32;
     let path = root().join("mitsuba_scenes/cloud.xml");
@@ -122,13 +137,24 @@ fn measure_cloud() {
     let w = scene.shot.film.crop_size.0;
 
     let plain: Vec<_> = (0..seeds)
-        .map(|s| render(&scene, &scene.shot.with(spp, 50 + s), &RenderOptions::default()).image.pixels)
+        .map(|s| {
+            render(
+                &scene,
+                &scene.shot.with(spp, 50 + s),
+                &RenderOptions::default(),
+            )
+            .image
+            .pixels
+        })
         .collect();
     let p = split(&plain, &r);
     println!("cloud, {spp} spp/frame, {seeds} seeds; reference mean variance subtracted");
     println!("| factor | variant | MSE corrected | variance | bias² |");
     println!("|---|---|---:|---:|---:|");
-    println!("| 1 | plain volpath | {:.3e} | {:.3e} | {:.1e} |", p.mse, p.var, p.bias2);
+    println!(
+        "| 1 | plain volpath | {:.3e} | {:.3e} | {:.1e} |",
+        p.mse, p.var, p.bias2
+    );
     for factor in [0.95f32, 0.9, 0.5, 0.3] {
         let mut variants: [Vec<Vec<[f32; 3]>>; 4] = Default::default();
         for s in 0..seeds {
@@ -143,19 +169,26 @@ fn measure_cloud() {
             variants[2].push(add(src, blended));
             variants[3].push(add(src, &f(blended)));
         }
-        let names = ["none (R_s + D)", "spatial, 1 frame", "temporal (11 frames)", "temporal + spatial (auto's)"];
+        let names = [
+            "none (R_s + D)",
+            "spatial, 1 frame",
+            "temporal (11 frames)",
+            "temporal + spatial (auto's)",
+        ];
         for (name, images) in names.iter().zip(&variants) {
             let s = split(images, &r);
-            println!("| {factor} | {name} | {:.3e} | {:.3e} | {:.2e} |", s.mse, s.var, s.bias2);
+            println!(
+                "| {factor} | {name} | {:.3e} | {:.3e} | {:.2e} |",
+                s.mse, s.var, s.bias2
+            );
         }
     }
-
 }
 
 /// `cargo test --release --test regularize_pilot -- --ignored --nocapture print_pilot`:
 /// the pilot's estimates at the table's settings on $PILOT_SCENE (default the cloud) for a
 /// run of $PILOT_N spp (default 620, what a 10 s budget bought on the cloud), with the
-/// scene parameters $PILOT_PARAMS.
+/// scene parameters $PILOT_PARAMS and seed $PILOT_SEED.
 #[test]
 #[ignore]
 fn print_pilot() {
@@ -163,10 +196,19 @@ fn print_pilot() {
     let spp = std::env::var("PILOT_N").map_or(620, |v| v.parse().expect("PILOT_N"));
     // $PILOT_PARAMS: name=value,name=value (-D).
     let params = std::env::var("PILOT_PARAMS").unwrap_or_default();
-    let params: Vec<(&str, &str)> = params.split(',').filter_map(|kv| kv.split_once('=')).collect();
-    let (pl, pixels) = pilot_of(&name, &params, spp);
-    println!("\n{name}: pilot (8 × 1 spp, N = {spp}): chose {:?}", pl.factor);
-    println!("| factor | Var R_s | Var D | Var F D | bias² | s/spp | E(f) (all per pixel and channel) |");
+    let params: Vec<(&str, &str)> = params
+        .split(',')
+        .filter_map(|kv| kv.split_once('='))
+        .collect();
+    let seed = std::env::var("PILOT_SEED").map_or(0, |v| v.parse().expect("PILOT_SEED"));
+    let (pl, pixels) = pilot_of(&name, &params, spp, seed);
+    println!(
+        "\n{name}: pilot (8 × 1 spp, N = {spp}): chose {:?}",
+        pl.factor
+    );
+    println!(
+        "| factor | Var R_s | Var D | Var F D | bias² | s/spp | E(f) (all per pixel and channel) |"
+    );
     println!("|---|---:|---:|---:|---:|---:|---:|");
     for c in &pl.candidates {
         let m = |v: [f64; 3]| v.iter().sum::<f64>() / pixels;

@@ -45,8 +45,11 @@
 //! the cloud (docs/regularize.md) the spatial filter's squared bias was 5.5e-5 to
 //! 2.2e-4 per value, at the pilot's 8 spp far below its noise; the point estimate,
 //! clamped at 0, chose factors 0.4/0.5 that lost ×3 to plain volpath, the bound keeps
-//! factor 1. The temporal blend's bias is not estimated (the pilot renders one view).
-//! The candidates stop at 0.2: below, the denoising would do nearly all the work.
+//! factor 1. It is a safeguard more than a bound: the guide shares D's paths, so F
+//! smooths least where D̄'s noise is largest and the estimate runs below 0 (by 4–8
+//! standard errors on the cloud and the cube); it bites where D's noise is heavy. The
+//! temporal blend's bias is not estimated (the pilot renders one view). The candidates
+//! stop at 0.2: below, the denoising would do nearly all the work.
 
 use super::spatial::{self, BilateralParams, Features};
 use crate::image::stats::{Estimate, PixelLayout};
