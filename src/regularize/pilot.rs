@@ -35,9 +35,21 @@
 //! albedo 0.98 wants a factor nearer 1 than its blue 0.88). Factor 1 (plain volpath,
 //! D = 0) is a candidate, so the choice never plans a loss.
 //!
-//! At the pilot's few samples the bias estimate is mostly below its own noise and
-//! clamped to 0, so the candidates stop at 0.2: below, the denoising would do nearly all
-//! the work unchecked.
+//! At the pilot's few samples the bias estimate is mostly below its own noise. A bias
+//! the pilot cannot see is not taken as 0 but as large as its noise allows: Σ b² is the
+//! estimate plus `BIAS_Z` standard errors, for Gaussian pixel noise
+//!
+//!   SE² ≈ Σ_j 2 s_j⁴ (1 + 1/(chunks − 1)),  s_j² = Var(D̄_j) Σ_i (F − I)_ij²,      (P2)
+//!
+//! (the squared norm's variance, and the spread of the chunks' variance estimate). On
+//! the cloud (docs/regularize.md) the spatial filter's squared bias was 5.5e-5 to
+//! 2.2e-4 per value, at the pilot's 8 spp far below its noise; the point estimate,
+//! clamped at 0, chose factors 0.4/0.5 that lost ×3 to plain volpath, the bound keeps
+//! factor 1. It is a safeguard more than a bound: the guide shares D's paths, so F
+//! smooths least where D̄'s noise is largest and the estimate runs below 0 (by 4–8
+//! standard errors on the cloud and the cube); it bites where D's noise is heavy. The
+//! temporal blend's bias is not estimated (the pilot renders one view). The candidates
+//! stop at 0.2: below, the denoising would do nearly all the work.
 
 use super::spatial::{self, BilateralParams, Features};
 use crate::image::stats::{Estimate, PixelLayout};
@@ -45,6 +57,10 @@ use crate::integrator::volpath::Gradient;
 use crate::integrator::{render, RenderOptions};
 use crate::scene::shot::Shot;
 use crate::scene::Scene;
+
+/// How many standard errors of the bias estimate the pilot adds to it (P2): a bias it
+/// cannot tell from its noise is taken as large as the noise allows (one-sided ~98%).
+pub const BIAS_Z: f64 = 2.0;
 
 /// The factors the pilot tries, 1 (no extrapolation) included.
 pub const CANDIDATES: [f32; 10] = [1.0, 0.95, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2];
@@ -105,21 +121,28 @@ fn fit_line(points: &[(f64, f64)]) -> impl Fn(f64) -> f64 {
 }
 
 /// What the spatial filter F leaves of the difference's noise (Σ_j Σ_i F_ij² v_j, per
-/// channel, v_j one sample's variance at pixel j, from `samples` samples) and its
-/// squared bias on the difference's mean (the module comment's estimator).
+/// channel, v_j one sample's variance at pixel j, from `samples` samples in `chunks`
+/// renders) and an upper bound on its squared bias on the difference's mean (the module
+/// comment's estimator plus `BIAS_Z` of its standard errors).
 fn spatial_terms(
     difference: &Measured,
     samples: f64,
+    chunks: usize,
     filter: &FilterMatrix,
 ) -> ([f64; 3], [f64; 3]) {
     let mut left = [0.0; 3];
     // Σ_j Var(D̄_j) Σ_i (F − I)_ij²: what D̄'s own noise adds to ‖(F − I) D̄‖².
     let mut noise_power = [0.0; 3];
+    // The estimator's variance (P2): Σ_j 2 s_j⁴ (1 + 1/(chunks − 1)).
+    let mut noise_var = [0.0; 3];
+    let dof_term = 1.0 + 1.0 / (chunks as f64 - 1.0);
     for (j, v) in difference.var_mean.iter().enumerate() {
         for c in 0..3 {
             let v = v[c] as f64;
             left[c] += filter.norm2[j] * v * samples;
-            noise_power[c] += (filter.norm2[j] - 2.0 * filter.diagonal[j] + 1.0) * v;
+            let s2 = (filter.norm2[j] - 2.0 * filter.diagonal[j] + 1.0) * v;
+            noise_power[c] += s2;
+            noise_var[c] += 2.0 * s2 * s2 * dof_term;
         }
     }
     let filtered = spatial::denoise(
@@ -130,7 +153,8 @@ fn spatial_terms(
         filter.params,
     );
     let seen = distance2(&filtered, &difference.mean);
-    let bias2 = [0, 1, 2].map(|c| (seen[c] - noise_power[c]).max(0.0));
+    let bias2 =
+        [0, 1, 2].map(|c| (seen[c] - noise_power[c] + BIAS_Z * noise_var[c].sqrt()).max(0.0));
     (left, bias2)
 }
 
@@ -238,7 +262,7 @@ pub fn choose_factor(
     for (factor, var_source, var_difference, difference, seconds) in measured {
         let (var_difference_filtered, bias2) = match &filter {
             Some(filter) if var_difference.iter().sum::<f64>() > 0.0 => {
-                spatial_terms(&difference, samples, filter)
+                spatial_terms(&difference, samples, chunks, filter)
             }
             _ => (var_difference, [0.0; 3]),
         };
