@@ -116,9 +116,9 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         // ---- Russian roulette ----
         let tmax_c = throughput.max_element();
         let rr_prob = (tmax_c * eta * eta).min(0.95);
-        let u_rr = rng.next_1d();
         if depth >= s.rr_depth {
-            if u_rr >= rr_prob {
+            // Drawn only where played, as in volpath (the first draws are stratified).
+            if rng.next_1d() >= rr_prob {
                 break;
             }
             throughput /= rr_prob;

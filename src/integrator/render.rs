@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use super::volpath::PathSettings;
 use super::{direct, path, volpath};
 use crate::image::Image;
-use crate::sampling::{Pcg32, PixelSamples};
+use crate::sampling::{PaddedScrambles, Pcg32, PixelSamples};
 use crate::scene::film::ImageBlock;
 use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene};
@@ -190,8 +190,10 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                         let (fx, fy) = (x + ox, y + oy);
                         let pixel = (fy * film.width + fx) as u64;
                         let positions = PixelSamples::new(shot.seed, pixel);
+                        let mut words = Pcg32::for_sample(shot.seed, pixel, u64::MAX - 1);
+                        let scrambles = PaddedScrambles::new(|| words.next_u32());
                         for si in s0..s1 {
-                            let mut rng = Pcg32::for_sample(shot.seed, pixel, si as u64);
+                            let mut rng = Pcg32::for_path(shot.seed, pixel, si, &scrambles);
                             let u = positions.get(si);
                             let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
                             let ray = shot.camera.sample_ray(pos);

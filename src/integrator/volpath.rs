@@ -393,8 +393,11 @@ pub fn sample(
         if (beta == Vec3::ZERO && d_beta == Vec3::ZERO) || depth >= s.max_depth {
             break;
         }
-        let u_rr = rng.next_1d();
         if depth > s.rr_depth {
+            // Drawn only where the roulette is played (by depth, so the same at every
+            // albedo): the path's first draws, stratified (`sampling::padded`), go to
+            // what shapes the image, not to a roulette that is not played.
+            let u_rr = rng.next_1d();
             // The same q as without a gradient (same paths), except that a path whose β
             // is 0 but dβ is not (albedo 0) must keep q > 0 for the detached estimator.
             // The difference's paths are rouletted by the target's weight β_t = β + dβ

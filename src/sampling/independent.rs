@@ -1,14 +1,23 @@
 //! Mitsuba's `independent` sampler: a PCG32 stream per pixel sample, seeded from the
 //! scene seed, the pixel index and the sample index, so an image depends only on the
-//! seed, never on thread count or on how the samples are split into passes.
+//! seed, never on thread count or on how the samples are split into passes. A path's
+//! stream (`Pcg32::for_path`) takes its first draws from `sampling::padded`.
 
 use glam::Vec2;
+
+use super::padded::{PaddedScrambles, STRATIFIED_DRAWS};
 
 /// PCG32 (O'Neill 2014), XSH-RR output, the generator Mitsuba uses.
 #[derive(Clone, Debug)]
 pub struct Pcg32 {
     state: u64,
     inc: u64,
+    /// The first `STRATIFIED_DRAWS` draws of a path stream ([`Pcg32::for_path`]) come
+    /// from the pixel's padded (0,2)-sequences: `draw` counts them (it starts at the
+    /// limit in every other stream); the sample is point `index` of the pixel's.
+    draw: usize,
+    index: u32,
+    scrambles: Option<PaddedScrambles>,
 }
 
 const MULT: u64 = 0x5851_f42d_4c95_7f2d;
@@ -18,6 +27,9 @@ impl Pcg32 {
         let mut r = Pcg32 {
             state: 0,
             inc: (stream << 1) | 1,
+            draw: STRATIFIED_DRAWS,
+            index: 0,
+            scrambles: None,
         };
         r.next_u32();
         r.state = r.state.wrapping_add(seed);
@@ -41,6 +53,32 @@ impl Pcg32 {
         Pcg32::new(s, splitmix64(s ^ p))
     }
 
+    /// The stream of one path: [`Pcg32::for_sample`], except that its first
+    /// `STRATIFIED_DRAWS` draws (one value of `next_1d`, or the pair of `next_2d`) are
+    /// the sample's points of the pixel's padded (0,2)-sequences (`sampling::padded`):
+    /// each draw of one sample is uniform and independent of the others, so every
+    /// estimate keeps its expectation; across a pixel's samples each draw is stratified.
+    #[inline]
+    pub fn for_path(seed: u64, pixel: u64, sample: u32, scrambles: &PaddedScrambles) -> Self {
+        let mut r = Pcg32::for_sample(seed, pixel, sample as u64);
+        r.draw = 0;
+        r.index = sample;
+        r.scrambles = Some(*scrambles);
+        r
+    }
+
+    /// The next draw of the stratified prefix (out of line: the common draw from PCG32
+    /// stays small enough to inline everywhere).
+    #[inline(never)]
+    fn stratified(&mut self) -> [u32; 2] {
+        let p = match &self.scrambles {
+            Some(s) => s.point(self.draw, self.index),
+            None => [self.next_u32(), self.next_u32()],
+        };
+        self.draw += 1;
+        p
+    }
+
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
@@ -51,16 +89,29 @@ impl Pcg32 {
     }
 
     /// Uniform in [0, 1): 23 random mantissa bits.
-    #[inline]
+    #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
-        f32::from_bits((self.next_u32() >> 9) | 0x3f80_0000) - 1.0
+        if self.draw < STRATIFIED_DRAWS {
+            return unit(self.stratified()[0]);
+        }
+        unit(self.next_u32())
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
-        let x = self.next_1d();
-        Vec2::new(x, self.next_1d())
+        if self.draw < STRATIFIED_DRAWS {
+            let [x, y] = self.stratified();
+            return Vec2::new(unit(x), unit(y));
+        }
+        let x = unit(self.next_u32());
+        Vec2::new(x, unit(self.next_u32()))
     }
+}
+
+/// The top 23 bits as a float in [0, 1).
+#[inline]
+fn unit(bits: u32) -> f32 {
+    f32::from_bits((bits >> 9) | 0x3f80_0000) - 1.0
 }
 
 fn splitmix64(mut z: u64) -> u64 {

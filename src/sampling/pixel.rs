@@ -11,6 +11,7 @@
 
 use glam::Vec2;
 
+use super::padded::sobol_second;
 use super::Pcg32;
 
 /// The sample positions of one pixel.
@@ -36,21 +37,6 @@ impl PixelSamples {
             unit(sobol_second(index) ^ self.shift[1]),
         )
     }
-}
-
-/// The second dimension of the Sobol sequence as 32 bits: the generator matrix's
-/// columns are v_{k+1} = v_k ^ (v_k >> 1) from v_0 = 2^31.
-#[inline]
-fn sobol_second(mut index: u32) -> u32 {
-    let (mut v, mut bits) = (1u32 << 31, 0u32);
-    while index != 0 {
-        if index & 1 != 0 {
-            bits ^= v;
-        }
-        index >>= 1;
-        v ^= v >> 1;
-    }
-    bits
 }
 
 /// The top 23 bits as a float in [0, 1).
