@@ -15,7 +15,9 @@
 
 mod common;
 
-use common::{layout, load_seeded, reference, render_gradient_chunks, root, ALPHA, FALSE_ALARM};
+use common::{
+    layout, load_seeded, reference, render_gradient_chunks, render_pixels, root, ALPHA, FALSE_ALARM,
+};
 use mediareg::image::stats::{compare, Comparison, Estimate};
 use mediareg::integrator::volpath::Gradient;
 use mediareg::integrator::RenderOptions;
@@ -46,16 +48,13 @@ fn render_scene(
     gradient: Gradient,
 ) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
     let s = load_seeded(scene, params, spp, seed);
-    let r = mediareg::integrator::render(
+    render_pixels(
         &s,
-        &s.shot,
-        &RenderOptions {
-            show_progress: false,
+        RenderOptions {
             gradient,
             ..Default::default()
         },
-    );
-    (r.image.pixels, r.gradient.map(|g| g.pixels))
+    )
 }
 
 /// Central differences at albedo α ± h (every channel moved by h) against the gradient

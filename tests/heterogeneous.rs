@@ -7,7 +7,7 @@
 mod common;
 
 use common::scene_text::{load_or_build_error, load_text, tmp_dir, write};
-use common::{check_against_reference, load_seeded, root};
+use common::{check_against_reference, load_seeded, render_pixels, root};
 use mediareg::integrator::volpath::Gradient;
 use mediareg::integrator::RenderOptions;
 use mediareg::medium::grid::write_vol;
@@ -47,17 +47,14 @@ fn render_cloud(factor: f32, gradient: Gradient) -> (Vec<[f32; 3]>, Option<Vec<[
     // same paths, as the tracking's decisions depend on σ_t only.
     let params = [("albedo", "0.9"), ("max_depth", "12"), ("rr_depth", "100")];
     let s = load_seeded(&root().join("mitsuba_scenes/cloud.xml"), &params, 8, 5);
-    let r = mediareg::integrator::render(
+    render_pixels(
         &s,
-        &s.shot,
-        &RenderOptions {
-            show_progress: false,
+        RenderOptions {
             gradient,
             albedo: Some(vec![glam::Vec3::splat(factor)]),
             ..Default::default()
         },
-    );
-    (r.image.pixels, r.gradient.map(|g| g.pixels))
+    )
 }
 
 /// d(radiance)/d(factor on the albedo volume) at factor 1 against central differences

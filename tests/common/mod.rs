@@ -48,6 +48,20 @@ pub fn load_seeded(scene: &Path, params: &[(&str, &str)], spp: u32, seed: u64) -
     load_seeded_crop(scene, params, spp, seed, None)
 }
 
+/// One render of `s` at its own shot with `opts` (progress bar off): the image's pixels,
+/// and the gradient's when `opts` asks for one.
+pub fn render_pixels(
+    s: &Scene,
+    opts: mediareg::integrator::RenderOptions,
+) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
+    let opts = mediareg::integrator::RenderOptions {
+        show_progress: false,
+        ..opts
+    };
+    let r = mediareg::integrator::render(s, &s.shot, &opts);
+    (r.image.pixels, r.gradient.map(|g| g.pixels))
+}
+
 /// `load_seeded` with a crop window `[x, y, w, h]` of the film (`--crop`).
 pub fn load_seeded_crop(
     scene: &Path,
