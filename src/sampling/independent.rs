@@ -5,7 +5,7 @@
 
 use glam::Vec2;
 
-use super::padded::{PaddedScrambles, STRATIFIED_DRAWS};
+use super::padded::{PaddedPoints, PaddedScrambles, STRATIFIED_DRAWS};
 
 /// PCG32 (O'Neill 2014), XSH-RR output, the generator Mitsuba uses.
 #[derive(Clone, Debug)]
@@ -14,10 +14,9 @@ pub struct Pcg32 {
     inc: u64,
     /// The first `STRATIFIED_DRAWS` draws of a path stream ([`Pcg32::for_path`]) come
     /// from the pixel's padded (0,2)-sequences: `draw` counts them (it starts at the
-    /// limit in every other stream); the sample is point `index` of the pixel's.
+    /// limit in every other stream); `padded` holds the sample's points of them.
     draw: usize,
-    index: u32,
-    scrambles: Option<PaddedScrambles>,
+    padded: PaddedPoints,
 }
 
 const MULT: u64 = 0x5851_f42d_4c95_7f2d;
@@ -28,8 +27,7 @@ impl Pcg32 {
             state: 0,
             inc: (stream << 1) | 1,
             draw: STRATIFIED_DRAWS,
-            index: 0,
-            scrambles: None,
+            padded: PaddedPoints::default(),
         };
         r.next_u32();
         r.state = r.state.wrapping_add(seed);
@@ -62,21 +60,8 @@ impl Pcg32 {
     pub fn for_path(seed: u64, pixel: u64, sample: u32, scrambles: &PaddedScrambles) -> Self {
         let mut r = Pcg32::for_sample(seed, pixel, sample as u64);
         r.draw = 0;
-        r.index = sample;
-        r.scrambles = Some(*scrambles);
+        r.padded = scrambles.points(sample);
         r
-    }
-
-    /// The next draw of the stratified prefix (out of line: the common draw from PCG32
-    /// stays small enough to inline everywhere).
-    #[inline(never)]
-    fn stratified(&mut self) -> [u32; 2] {
-        let p = match &self.scrambles {
-            Some(s) => s.point(self.draw, self.index),
-            None => [self.next_u32(), self.next_u32()],
-        };
-        self.draw += 1;
-        p
     }
 
     #[inline]
@@ -92,7 +77,8 @@ impl Pcg32 {
     #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
         if self.draw < STRATIFIED_DRAWS {
-            return unit(self.stratified()[0]);
+            self.draw += 1;
+            return unit(self.padded.x[self.draw - 1]);
         }
         unit(self.next_u32())
     }
@@ -100,8 +86,9 @@ impl Pcg32 {
     #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
         if self.draw < STRATIFIED_DRAWS {
-            let [x, y] = self.stratified();
-            return Vec2::new(unit(x), unit(y));
+            let k = self.draw;
+            self.draw += 1;
+            return Vec2::new(unit(self.padded.x[k]), unit(self.padded.y[k]));
         }
         let x = unit(self.next_u32());
         Vec2::new(x, unit(self.next_u32()))

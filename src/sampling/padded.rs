@@ -21,11 +21,19 @@
 pub const STRATIFIED_DRAWS: usize = 8;
 
 /// The random choices of a pixel's padded (0,2)-sequences, one per draw: the seed of
-/// the index scramble and the digital shift.
+/// the index scramble and the digital shift of each coordinate.
 #[derive(Clone, Copy, Debug)]
 pub struct PaddedScrambles {
     order: [u32; STRATIFIED_DRAWS],
-    shift: [[u32; 2]; STRATIFIED_DRAWS],
+    shift_x: [u32; STRATIFIED_DRAWS],
+    shift_y: [u32; STRATIFIED_DRAWS],
+}
+
+/// One sample's points of all the draws, coordinate by coordinate.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PaddedPoints {
+    pub x: [u32; STRATIFIED_DRAWS],
+    pub y: [u32; STRATIFIED_DRAWS],
 }
 
 impl PaddedScrambles {
@@ -34,24 +42,45 @@ impl PaddedScrambles {
     pub fn new(mut word: impl FnMut() -> u32) -> Self {
         let mut s = PaddedScrambles {
             order: [0; STRATIFIED_DRAWS],
-            shift: [[0; 2]; STRATIFIED_DRAWS],
+            shift_x: [0; STRATIFIED_DRAWS],
+            shift_y: [0; STRATIFIED_DRAWS],
         };
         for k in 0..STRATIFIED_DRAWS {
             s.order[k] = word();
-            s.shift[k] = [word(), word()];
+            s.shift_x[k] = word();
+            s.shift_y[k] = word();
         }
         s
     }
 
     /// Point `index` of draw `draw`: (radical inverse, Sobol's second dimension) of the
     /// scrambled index, shifted.
-    #[inline]
     pub fn point(&self, draw: usize, index: u32) -> [u32; 2] {
-        let j = owen_scramble(index, self.order[draw]);
-        [
-            j.reverse_bits() ^ self.shift[draw][0],
-            sobol_second(j) ^ self.shift[draw][1],
-        ]
+        let p = self.points(index);
+        [p.x[draw], p.y[draw]]
+    }
+
+    /// Point `index` of every draw, all at once (a path draws most of them, and the
+    /// draws' hashes run side by side in vector registers). The scramble works on the
+    /// index's reversed bits and reverses its result, and the radical inverse reverses
+    /// it back: so the hash's output is the first coordinate as it is, and the second
+    /// is computed from it as it is (`sobol_second_reversed`). No bit reversal per draw.
+    #[inline]
+    pub fn points(&self, index: u32) -> PaddedPoints {
+        let v = index.reverse_bits();
+        let prepared = v ^ v.wrapping_mul(0x3d20_adea);
+        let mut p = PaddedPoints::default();
+        for (((x, y), &order), (&shift_x, &shift_y)) in
+            p.x.iter_mut()
+                .zip(&mut p.y)
+                .zip(&self.order)
+                .zip(self.shift_x.iter().zip(&self.shift_y))
+        {
+            let h = owen_hash(prepared, order);
+            *x = h ^ shift_x;
+            *y = sobol_second_reversed(h) ^ shift_y;
+        }
+        p
     }
 }
 
@@ -59,62 +88,43 @@ impl PaddedScrambles {
 /// bits above it. Laine and Karras's hash with Burley's constants (Burley 2020,
 /// "Practical Hash-based Owen Scrambling") flips each bit by the bits below it, as
 /// multiplication and addition carry only upwards; on the reversed bits that is above.
-#[inline]
+#[cfg(test)]
 fn owen_scramble(x: u32, seed: u32) -> u32 {
-    let mut v = x.reverse_bits();
-    v ^= v.wrapping_mul(0x3d20_adea);
-    v = v.wrapping_add(seed);
+    let v = x.reverse_bits();
+    owen_hash(v ^ v.wrapping_mul(0x3d20_adea), seed).reverse_bits()
+}
+
+/// The hash's seeded steps, on reversed bits (its first step, seed-independent, is
+/// taken once for all draws in [`PaddedScrambles::points`]).
+#[inline]
+fn owen_hash(prepared: u32, seed: u32) -> u32 {
+    let mut v = prepared.wrapping_add(seed);
     v = v.wrapping_mul((seed >> 16) | 1);
     v ^= v.wrapping_mul(0x0552_6c56);
-    v ^= v.wrapping_mul(0x53a2_2864);
-    v.reverse_bits()
+    v ^ v.wrapping_mul(0x53a2_2864)
 }
 
 /// The second dimension of the Sobol sequence as 32 bits: the generator matrix's
-/// columns are v_{k+1} = v_k ^ (v_k >> 1) from v_0 = 2^31. The product with the index
-/// is the XOR of the columns of its set bits, read a byte at a time from tables of
-/// every byte's XOR (`SOBOL_SECOND_BYTES`).
+/// columns are v_{k+1} = v_k ^ (v_k >> 1) from v_0 = 2^31, so column k sets output bit
+/// 31 − j where the binomial C(k, j) is odd (Pascal's triangle mod 2), by Lucas's
+/// theorem where the bits of j are a subset of those of k.
 #[inline]
 pub(super) fn sobol_second(index: u32) -> u32 {
-    let t = &SOBOL_SECOND_BYTES;
-    t[0][(index & 0xff) as usize]
-        ^ t[1][((index >> 8) & 0xff) as usize]
-        ^ t[2][((index >> 16) & 0xff) as usize]
-        ^ t[3][(index >> 24) as usize]
+    sobol_second_reversed(index.reverse_bits())
 }
 
-/// Per byte b of an index and per value of it, the XOR of the generator columns
-/// 8b..8b+8 its set bits pick.
-static SOBOL_SECOND_BYTES: [[u32; 256]; 4] = sobol_second_bytes();
-
-const fn sobol_second_bytes() -> [[u32; 256]; 4] {
-    let mut columns = [0u32; 32];
-    let mut v = 1u32 << 31;
-    let mut k = 0;
-    while k < 32 {
-        columns[k] = v;
-        v ^= v >> 1;
-        k += 1;
-    }
-    let mut t = [[0u32; 256]; 4];
-    let mut b = 0;
-    while b < 4 {
-        let mut x = 0;
-        while x < 256 {
-            let mut bits = 0u32;
-            let mut i = 0;
-            while i < 8 {
-                if x & (1 << i) != 0 {
-                    bits ^= columns[8 * b + i];
-                }
-                i += 1;
-            }
-            t[b][x] = bits;
-            x += 1;
-        }
-        b += 1;
-    }
-    t
+/// `sobol_second(h.reverse_bits())`. With the index's bits reversed, input bit 31 − k
+/// reaches output bit 31 − j where j ⊆ k, that is where 31 − k ⊆ 31 − j: each output
+/// bit m is the XOR of the input bits at the subsets of m: the subset-sum (zeta)
+/// transform over GF(2), taken one bit of m at a time in five shift-and-mask steps.
+/// No tables, so the draws of a sample compute side by side in vector registers.
+#[inline]
+fn sobol_second_reversed(mut h: u32) -> u32 {
+    h ^= (h << 1) & 0xaaaa_aaaa;
+    h ^= (h << 2) & 0xcccc_cccc;
+    h ^= (h << 4) & 0xf0f0_f0f0;
+    h ^= (h << 8) & 0xff00_ff00;
+    h ^ ((h << 16) & 0xffff_0000)
 }
 
 #[cfg(test)]
@@ -132,9 +142,9 @@ mod tests {
         })
     }
 
-    /// The tables give the generator matrix's product bit by bit.
+    /// The shift-and-mask steps give the generator matrix's product bit by bit.
     #[test]
-    fn sobol_second_tables_match_the_matrix() {
+    fn sobol_second_matches_the_matrix() {
         let by_bits = |mut index: u32| {
             let (mut v, mut bits) = (1u32 << 31, 0u32);
             while index != 0 {
@@ -155,6 +165,23 @@ mod tests {
         };
         for i in (0..4096).chain((0..4096).map(|_| random())) {
             assert_eq!(sobol_second(i), by_bits(i), "index {i}");
+        }
+    }
+
+    /// The reversed form reads the bit-reversed index.
+    #[test]
+    fn reversed_form_reads_reversed_bits() {
+        let mut state = 5u64;
+        for _ in 0..10_000 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let h = (state >> 32) as u32;
+            assert_eq!(
+                sobol_second_reversed(h),
+                sobol_second(h.reverse_bits()),
+                "{h}"
+            );
         }
     }
 
