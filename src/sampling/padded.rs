@@ -55,7 +55,8 @@ impl PaddedScrambles {
 
     /// Point `index` of draw `draw`: (radical inverse, Sobol's second dimension) of the
     /// scrambled index, shifted.
-    pub fn point(&self, draw: usize, index: u32) -> [u32; 2] {
+    #[cfg(test)]
+    fn point(&self, draw: usize, index: u32) -> [u32; 2] {
         let p = self.points(index);
         [p.x[draw], p.y[draw]]
     }
