@@ -14,6 +14,7 @@ const LAYERS: &[&str] = &[
     "error",      // Loc, SceneError
     "sampling",   // Pcg32, warps, MIS weight
     "image",      // Image, EXR/PNG, statistics
+    "denoise",    // denoisers on images (OIDN)
     "xml",        // file → SceneDescription
     "geometry",   // rays, shapes, meshes, BVH
     "texture",    // constant, checkerboard, bitmap

@@ -20,6 +20,7 @@ __all__ = [
     "Error",
     "Scene",
     "SceneError",
+    "denoise",
     "load_file",
     "merge",
     "read_exr",
@@ -55,7 +56,8 @@ def load_file(path, search_path=None, strict_v3=False, sensor=0, **params):
     return scene
 
 
-def render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, medium=None):
+def render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, medium=None,
+           denoise=None):
     """Renders ``scene`` (Mitsuba's ``mi.render``): a float32 array (H, W, 3).
 
     ``spp``: samples per pixel (None: the sampler's sample_count); ``seed``: as Mitsuba,
@@ -63,8 +65,11 @@ def render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, me
     loaded for (``load_file(..., sensor=N)``; None: that one); ``threads``: render threads (None: all cores); the image is the same at any
     count. ``gradient="albedo"`` also estimates d(radiance_c)/d(albedo_c) of one medium
     (``medium``: its XML id, needed when the scene has several) in the same paths, and
-    returns ``(image, dalbedo)``. The GIL is released; Ctrl-C stops the render and
-    raises KeyboardInterrupt.
+    returns ``(image, dalbedo)``. ``denoise="oidn"`` returns the image through Intel Open
+    Image Denoise, as ``mediareg render --denoise oidn`` writes it (the directly seen
+    emission kept out, albedo and normal buffers; the library: ``scripts/fetch_oidn`` or
+    ``MEDIAREG_OIDN``). The GIL is released; Ctrl-C stops the render and raises
+    KeyboardInterrupt.
     """
     return _mediareg.render(
         scene,
@@ -74,6 +79,21 @@ def render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, me
         threads=threads,
         gradient=gradient,
         medium=medium,
+        denoise=denoise,
+    )
+
+
+def denoise(color, albedo=None, normal=None, clean_aux=True):
+    """Intel Open Image Denoise's ``RT`` filter on float32 (H, W, 3) arrays: ``color``
+    linear HDR radiance (finite, non-negative), optionally the ``albedo`` (in [0, 1])
+    and, with it, the ``normal`` of what each pixel sees first; ``clean_aux``: those
+    are free of noise. Returns the denoised colour (the same for the same input).
+    """
+    return _mediareg.denoise(
+        _np.ascontiguousarray(color, dtype=_np.float32),
+        albedo=None if albedo is None else _np.ascontiguousarray(albedo, dtype=_np.float32),
+        normal=None if normal is None else _np.ascontiguousarray(normal, dtype=_np.float32),
+        clean_aux=clean_aux,
     )
 
 

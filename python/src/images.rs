@@ -7,6 +7,7 @@ use numpy::{PyArray1, PyArray3, PyArrayMethods, PyReadonlyArray3, PyUntypedArray
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use mediareg::denoise::{oidn, Aux, OidnError};
 use mediareg::image::{self, merge as merging, Image};
 
 use crate::{bad_arg, error};
@@ -95,4 +96,56 @@ pub fn merge<'py>(
         None => d.set_item("variance", py.None())?,
     }
     Ok(d)
+}
+
+/// denoise(color, albedo=None, normal=None, clean_aux=True): Intel Open Image Denoise's
+/// `RT` filter on (H, W, 3) float32 arrays (HDR colour; normal only with albedo).
+#[pyfunction]
+#[pyo3(signature = (color, albedo=None, normal=None, clean_aux=true))]
+pub fn denoise<'py>(
+    py: Python<'py>,
+    color: PyReadonlyArray3<'py, f32>,
+    albedo: Option<PyReadonlyArray3<'py, f32>>,
+    normal: Option<PyReadonlyArray3<'py, f32>>,
+    clean_aux: bool,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    let color = from_numpy(&color)?;
+    let albedo = albedo.as_ref().map(from_numpy).transpose()?;
+    let normal = normal.as_ref().map(from_numpy).transpose()?;
+    if normal.is_some() && albedo.is_none() {
+        return Err(bad_arg(
+            "normal= needs albedo= too (Open Image Denoise takes albedo alone, or both)",
+        ));
+    }
+    for (name, img) in [("albedo", &albedo), ("normal", &normal)] {
+        if let Some(i) = img {
+            if (i.width, i.height) != (color.width, color.height) {
+                return Err(bad_arg(format!(
+                    "{name} is {}x{}, color {}x{}: one size",
+                    i.height, i.width, color.height, color.width
+                )));
+            }
+        }
+    }
+    let aux = albedo.as_ref().map(|a| Aux {
+        albedo: &a.pixels,
+        normal: normal.as_ref().map(|n| &n.pixels[..]),
+        clean: clean_aux,
+    });
+    let lib = oidn::load().map_err(|e| crate::Error::new_err(e.to_string()))?;
+    let (w, h) = (color.width, color.height);
+    let out = py
+        .detach(|| lib.denoise_rt(w, h, &color.pixels, aux))
+        .map_err(|e| match e {
+            OidnError::BadInput(m) => bad_arg(m),
+            e => crate::Error::new_err(e.to_string()),
+        })?;
+    to_numpy(
+        py,
+        Image {
+            width: w,
+            height: h,
+            pixels: out,
+        },
+    )
 }

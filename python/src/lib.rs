@@ -145,6 +145,7 @@ fn _mediareg(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(images::write_exr, m)?)?;
     m.add_function(wrap_pyfunction!(images::read_exr, m)?)?;
     m.add_function(wrap_pyfunction!(images::merge, m)?)?;
+    m.add_function(wrap_pyfunction!(images::denoise, m)?)?;
     Ok(())
 }
 

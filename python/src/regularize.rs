@@ -127,6 +127,7 @@ pub fn regularize<'py>(
         reproject,
         motion,
         spatial,
+        oidn: false,
         show_progress: false,
     };
     let shot = data.shot.with(spp.unwrap_or(data.shot.spp), seed);

@@ -9,6 +9,7 @@ use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
+use mediareg::denoise::AuxUse;
 use mediareg::integrator::{self, volpath::Gradient, GradientError, RenderOptions};
 use mediareg::scene::MediumChoiceError;
 
@@ -18,9 +19,10 @@ use crate::{bad_arg, error, PyScene};
 /// How often the caller's thread looks for signals (Ctrl-C) while a render runs.
 const SIGNAL_CHECK: Duration = Duration::from_millis(100);
 
-/// render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, medium=None)
+/// render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, medium=None,
+///        denoise=None)
 #[pyfunction]
-#[pyo3(signature = (scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, medium=None))]
+#[pyo3(signature = (scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, medium=None, denoise=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn render<'py>(
     py: Python<'py>,
@@ -31,6 +33,7 @@ pub fn render<'py>(
     threads: Option<usize>,
     gradient: Option<&str>,
     medium: Option<&str>,
+    denoise: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let data = Arc::clone(&scene.get().inner);
     let built_for = scene.get().sensor;
@@ -64,22 +67,44 @@ pub fn render<'py>(
             )))
         }
     };
+    match denoise {
+        None => {}
+        Some("oidn") => {
+            mediareg::denoise::oidn::load()
+                .map_err(|e| crate::Error::new_err(format!("denoise=\"oidn\": {e}")))?;
+        }
+        Some(d) => {
+            return Err(bad_arg(format!(
+                "denoise=\"{d}\": the denoisers mediareg runs: \"oidn\""
+            )))
+        }
+    }
     let pool = thread_pool(threads)?;
     // Mitsuba's mi.render(scene, seed=0, spp=0): the seed given, not the sampler's.
     let shot = data.shot.with(spp.unwrap_or(data.shot.spp), seed);
     let cancel = Arc::new(AtomicBool::new(false));
     let opts = RenderOptions {
         gradient,
+        seen_emission: denoise.is_some(),
         cancel: Some(Arc::clone(&cancel)),
         ..Default::default()
     };
-    let rendered = interruptible(py, &cancel, move || {
-        let run = || integrator::render(&data, &shot, &opts);
+    let with_denoiser = denoise.is_some();
+    let (mut rendered, denoised) = interruptible(py, &cancel, move || {
+        let run = || {
+            let r = integrator::render(&data, &shot, &opts);
+            let d = (with_denoiser && !r.stats.interrupted)
+                .then(|| integrator::denoised::oidn(&data, &shot, &r, AuxUse::AlbedoNormal, None));
+            (r, d)
+        };
         match pool {
             Some(p) => p.install(run),
             None => run(),
         }
     })?;
+    if let Some(d) = denoised {
+        rendered.image = d.map_err(|e| crate::Error::new_err(format!("denoise=\"oidn\": {e}")))?;
+    }
     if rendered.stats.interrupted {
         // Cancelled without a signal of this thread's (cannot happen now: the flag is
         // this render's own); never hand back a partial image as if complete.

@@ -17,6 +17,7 @@
 use glam::{Vec3, Vec3A};
 
 use super::emitters::sample_light_at_surface;
+use super::sample::PathSample;
 use crate::geometry::offset_point;
 use crate::sampling::mis_weight;
 use crate::sampling::Pcg32;
@@ -31,7 +32,7 @@ pub fn sample(
     rng: &mut Pcg32,
     emitter_samples: u32,
     bsdf_samples: u32,
-) -> Vec3 {
+) -> PathSample {
     let total = (emitter_samples + bsdf_samples) as f32;
     let (frac_lum, frac_bsdf) = (emitter_samples as f32 / total, bsdf_samples as f32 / total);
     let si = scene.intersect(o, d, tmax);
@@ -46,7 +47,13 @@ pub fn sample(
         let n_end = si.map_or(Vec3A::ZERO, |h| h.sh_frame.n);
         result += scene.emitters[ei as usize].eval(n_end, d);
     }
-    let Some(h) = si else { return result };
+    let seen_emission = result;
+    let done = |radiance| PathSample {
+        radiance,
+        second: Vec3::ZERO,
+        seen_emission,
+    };
+    let Some(h) = si else { return done(result) };
     let bsdf = &scene.bsdfs[scene.shapes[h.shape as usize].bsdf as usize];
     let wi = h.sh_frame.to_local(-d);
 
@@ -96,5 +103,5 @@ pub fn sample(
         let w = mis_weight(bs.pdf * frac_bsdf, em_pdf * frac_lum) / bsdf_samples as f32;
         result += bs.weight * e.eval(n_end, wo) * w;
     }
-    result
+    done(result)
 }

@@ -9,6 +9,7 @@
 use glam::{Vec3, Vec3A};
 
 use super::emitters::{sample_light_at_surface, skip_emitters};
+use super::sample::PathSample;
 use crate::geometry::offset_point;
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
@@ -22,12 +23,13 @@ struct PrevVertex {
 }
 
 /// One radiance sample along the camera ray (o, d).
-pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> Vec3 {
+pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> PathSample {
     let s = &scene.integrator;
     if s.max_depth == 0 {
-        return Vec3::ZERO;
+        return PathSample::default();
     }
     let mut result = Vec3::ZERO;
+    let mut seen_emission = Vec3::ZERO;
     let mut throughput = Vec3::ONE;
     let mut eta = 1.0f32;
     let mut depth: u32 = 0;
@@ -63,7 +65,11 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
                 e.pdf_direction(prev.p, p_end, n_end, ray_d, &scene.geometries)
                     * scene.emitter_selection.pdf(prev.p, ei as usize)
             };
-            result += throughput * le * mis_weight(prev.bsdf_pdf, em_pdf);
+            let l = throughput * le * mis_weight(prev.bsdf_pdf, em_pdf);
+            result += l;
+            if depth == 0 {
+                seen_emission = l;
+            }
         }
 
         let h = match si {
@@ -131,8 +137,12 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         si = scene.intersect(o2, ray_d, f32::MAX);
     }
     if valid_ray {
-        result
+        PathSample {
+            radiance: result,
+            second: Vec3::ZERO,
+            seen_emission,
+        }
     } else {
-        Vec3::ZERO
+        PathSample::default()
     }
 }

@@ -13,11 +13,12 @@ use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
+use super::sample::PathSample;
 use super::volpath::PathSettings;
 use super::{direct, path, volpath};
 use crate::image::Image;
 use crate::sampling::{PaddedScrambles, Pcg32, PixelSamples};
-use crate::scene::film::ImageBlock;
+use crate::scene::film::{ImageBlock, Rfilter};
 use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene};
 
@@ -55,6 +56,9 @@ pub struct RenderOptions {
     /// Per medium, the albedo to render with instead of the scene's (the paper's method
     /// renders at a lower albedo); None renders the scene's.
     pub albedo: Option<Vec<Vec3>>,
+    /// Also accumulate the emission the camera sees directly (`PathSample::seen_emission`)
+    /// into `Rendered::seen_emission`, for a denoiser to keep out.
+    pub seen_emission: bool,
     /// Set (e.g. by a Ctrl-C handler, or the Python module's signal check) to stop:
     /// the pass under way is dropped and the image of the passes completed is returned.
     /// Shared, so each caller (one Python thread's render) can have its own.
@@ -91,11 +95,60 @@ fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
     passes
 }
 
-/// The radiance image and, when asked for, the derivative image (same layout, signed).
+/// The radiance image and, when asked for, the derivative image (same layout, signed)
+/// and the directly seen emission (a part of the radiance).
 pub struct Rendered {
     pub image: Image,
     pub gradient: Option<Image>,
+    pub seen_emission: Option<Image>,
     pub stats: RenderStats,
+}
+
+/// One tile's films: the radiance, and the optional images splatted with the same
+/// filter weights.
+struct Blocks {
+    radiance: ImageBlock,
+    second: Option<ImageBlock>,
+    seen: Option<ImageBlock>,
+}
+
+impl Blocks {
+    fn new(
+        offset: (i64, i64),
+        size: (usize, usize),
+        border: usize,
+        second: bool,
+        seen: bool,
+    ) -> Self {
+        let b = || ImageBlock::new(offset, size, border);
+        Blocks {
+            radiance: b(),
+            second: second.then(b),
+            seen: seen.then(b),
+        }
+    }
+
+    fn put(&mut self, p: (f32, f32), s: &PathSample, filter: &Rfilter) {
+        self.radiance.put(p, s.radiance, filter);
+        if let Some(b) = &mut self.second {
+            b.put(p, s.second, filter);
+        }
+        if let Some(b) = &mut self.seen {
+            b.put(p, s.seen_emission, filter);
+        }
+    }
+
+    fn accumulate_into(&self, target: &mut Blocks) {
+        self.radiance.accumulate_into(&mut target.radiance);
+        for (from, to) in [
+            (&self.second, &mut target.second),
+            (&self.seen, &mut target.seen),
+        ] {
+            if let (Some(f), Some(t)) = (from, to) {
+                f.accumulate_into(t);
+            }
+        }
+    }
 }
 
 /// Renders `scene` through `shot` (Mitsuba's `render(scene, sensor, seed, spp)`):
@@ -122,14 +175,11 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     let border = film.rfilter.border();
     let spp = shot.spp;
     let sample = |o, d, tmax, rng: &mut Pcg32| match scene.integrator.kind {
-        IntegratorKind::Path => (path::sample(scene, o, d, tmax, rng), Vec3::ZERO),
+        IntegratorKind::Path => path::sample(scene, o, d, tmax, rng),
         IntegratorKind::Direct {
             emitter_samples,
             bsdf_samples,
-        } => (
-            direct::sample(scene, o, d, tmax, rng, emitter_samples, bsdf_samples),
-            Vec3::ZERO,
-        ),
+        } => direct::sample(scene, o, d, tmax, rng, emitter_samples, bsdf_samples),
         IntegratorKind::Volpath => volpath::sample(scene, &settings, o, d, tmax, rng),
     };
 
@@ -159,12 +209,12 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
             .as_ref()
             .is_some_and(|c| c.load(Ordering::Relaxed))
     };
-    let new_blocks = || -> Vec<(ImageBlock, Option<ImageBlock>)> {
+    let new_blocks = || -> Vec<Blocks> {
         tiles
             .iter()
             .map(|&(tx, ty, tw, th)| {
-                let b = || ImageBlock::new((tx as i64, ty as i64), (tw, th), border);
-                (b(), with_gradient.then(b))
+                let (o, size) = ((tx as i64, ty as i64), (tw, th));
+                Blocks::new(o, size, border, with_gradient, opts.seen_emission)
             })
             .collect()
     };
@@ -180,7 +230,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         let invalid: Vec<Option<u64>> = tiles
             .par_iter()
             .zip(pass.par_iter_mut())
-            .map(|(&(tx, ty, tw, th), (block, d_block))| {
+            .map(|(&(tx, ty, tw, th), blocks)| {
                 let mut invalid = 0u64;
                 for y in ty..ty + th {
                     if cancelled() {
@@ -197,17 +247,16 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                             let u = positions.get(si);
                             let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
                             let ray = shot.camera.sample_ray(pos);
-                            let (mut l, mut dl) = sample(ray.o, ray.d, ray.tmax, &mut rng);
-                            if !l.is_finite() || !dl.is_finite() {
+                            let mut s = sample(ray.o, ray.d, ray.tmax, &mut rng);
+                            if !(s.radiance.is_finite()
+                                && s.second.is_finite()
+                                && s.seen_emission.is_finite())
+                            {
                                 invalid += 1;
-                                l = Vec3::ZERO;
-                                dl = Vec3::ZERO;
+                                s = PathSample::default();
                             }
                             let p = (pos.x - ox as f32, pos.y - oy as f32);
-                            block.put(p, l, &film.rfilter);
-                            if let Some(db) = d_block {
-                                db.put(p, dl, &film.rfilter);
-                            }
+                            blocks.put(p, &s, &film.rfilter);
                         }
                     }
                 }
@@ -219,11 +268,8 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
             break;
         };
         invalid_samples += invalid;
-        for ((b, db), (pb, pdb)) in acc.iter_mut().zip(&pass) {
+        for (b, pb) in acc.iter_mut().zip(&pass) {
             pb.accumulate_into(b);
-            if let (Some(pdb), Some(db)) = (pdb, db) {
-                pdb.accumulate_into(db);
-            }
         }
         spp_done = s1;
         if cancelled() {
@@ -232,13 +278,9 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     }
     bar.finish_and_clear();
 
-    let mut full = ImageBlock::new((0, 0), (cw, ch), border);
-    let mut d_full = with_gradient.then(|| ImageBlock::new((0, 0), (cw, ch), border));
-    for (b, db) in &acc {
+    let mut full = Blocks::new((0, 0), (cw, ch), border, with_gradient, opts.seen_emission);
+    for b in &acc {
         b.accumulate_into(&mut full);
-        if let (Some(db), Some(d_full)) = (db, &mut d_full) {
-            db.accumulate_into(d_full);
-        }
     }
     let seconds = start.elapsed().as_secs_f64();
     let as_image = |b: &ImageBlock| Image {
@@ -247,8 +289,9 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         pixels: b.develop(),
     };
     Rendered {
-        image: as_image(&full),
-        gradient: d_full.as_ref().map(as_image),
+        image: as_image(&full.radiance),
+        gradient: full.second.as_ref().map(as_image),
+        seen_emission: full.seen.as_ref().map(as_image),
         stats: RenderStats {
             spp: spp_done,
             samples: (cw * ch) as u64 * spp_done as u64,

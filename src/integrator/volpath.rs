@@ -52,6 +52,7 @@
 use glam::{Vec3, Vec3A};
 
 use super::emitters::{sample_light_at_surface, skip_emitters};
+use super::sample::PathSample;
 use crate::bsdf::Bsdf;
 use crate::geometry::accel::{Crossing, CrossingList, Crossings};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
@@ -368,10 +369,11 @@ pub fn sample(
     d: Vec3A,
     tmax: f32,
     rng: &mut Pcg32,
-) -> (Vec3, Vec3) {
+) -> PathSample {
     let s = &scene.integrator;
     let n_emitters = scene.emitters.len();
     let mut result = Vec3::ZERO;
+    let mut seen_emission = Vec3::ZERO;
     let mut d_result = Vec3::ZERO;
     // dβ/dα of the chosen medium's albedo (zero while no vertex in it).
     let mut d_beta = Vec3::ZERO;
@@ -597,6 +599,10 @@ pub fn sample(
             let le = emission_seen(scene, si.as_ref(), ray_d, depth, specular_chain, &last);
             result += beta * le;
             d_result += d_beta * le;
+            // At the camera ray's first intersection, as `aovs::seen_emission` traces it.
+            if depth == 0 && null_crossings == 0 && medium.is_none() {
+                seen_emission = le;
+            }
         }
         let Some(h) = si else { break };
         let info = &scene.shapes[h.shape as usize];
@@ -664,7 +670,11 @@ pub fn sample(
         ray_d = wo;
         ray_tmax = f32::INFINITY;
     }
-    (result, d_result)
+    PathSample {
+        radiance: result,
+        second: d_result,
+        seen_emission,
+    }
 }
 
 #[inline]

@@ -48,6 +48,9 @@ pub struct Choices {
     pub motion: Motion,
     /// None: on with the difference predictor, off with the others.
     pub spatial: Option<bool>,
+    /// Filter the difference (or gradient) with Open Image Denoise instead of the
+    /// bilateral filter.
+    pub oidn: bool,
     pub show_progress: bool,
 }
 
@@ -63,6 +66,7 @@ impl Default for Choices {
             reproject: Reproject::Exact,
             motion: Motion::Static,
             spatial: None,
+            oidn: false,
             show_progress: false,
         }
     }
@@ -131,8 +135,9 @@ pub fn options(scene: &Scene, shot: &Shot, c: &Choices) -> Result<(Options, Shot
         reproject: c.reproject,
         spatial: c
             .spatial
-            .unwrap_or(difference)
+            .unwrap_or(difference && !c.oidn)
             .then(BilateralParams::default),
+        oidn: c.oidn,
         auto_factor,
         method: c.method,
         show_progress: c.show_progress,

@@ -22,8 +22,10 @@ use super::reproject;
 use super::sequence::CameraPath;
 use super::spatial::{self, BilateralParams};
 use super::temporal::{self, Reprojection};
+use crate::denoise::{self, OidnError};
 use crate::error::SceneError;
 use crate::image::Image;
+use crate::integrator::aovs;
 use crate::integrator::volpath::Gradient;
 use crate::integrator::{render, RenderOptions};
 use crate::scene::shot::Shot;
@@ -70,6 +72,10 @@ pub struct Options {
     pub path: CameraPath,
     pub reproject: Reproject,
     pub spatial: Option<BilateralParams>,
+    /// Filter the blended gradient (or difference) with Open Image Denoise, guided by the
+    /// albedo and normal of the first visible surface (`integrator::aovs`), instead of
+    /// the joint bilateral filter (`spatial` is then None).
+    pub oidn: bool,
     pub method: Method,
     /// Choose `factor` with a pilot (`pilot`; the difference predictor only): `chunks`
     /// renders of `spp` samples at each candidate factor.
@@ -100,6 +106,7 @@ impl Default for Options {
             path: CameraPath::Static,
             reproject: Reproject::Exact,
             spatial: None,
+            oidn: false,
             method: Method::Paper(CBeta::Fixed(0.5)),
             auto_factor: None,
             show_progress: false,
@@ -172,6 +179,8 @@ pub enum RegularizeError {
     NothingToFit,
     /// The albedos or c_β the predictor cannot use (`Predictor::validate`).
     Predictor(SceneError),
+    /// Open Image Denoise is missing or failed (`Options::oidn`).
+    Denoise(OidnError),
 }
 
 impl std::fmt::Display for RegularizeError {
@@ -207,6 +216,7 @@ impl std::fmt::Display for RegularizeError {
                 "the c_beta fit: source and target albedo are equal (factor 1), nothing to fit"
             ),
             RegularizeError::Predictor(e) => write!(f, "{e}"),
+            RegularizeError::Denoise(e) => write!(f, "{e}"),
         }
     }
 }
@@ -394,6 +404,17 @@ pub fn regularize(
     let mut denoised = temporal::blend(&frame_refs, &maps, w, h, opts.w_a);
     if let Some(params) = &opts.spatial {
         denoised = spatial::denoise(&denoised, &source.pixels, &features, w, params);
+    }
+    if opts.oidn {
+        let aux = aovs::first_hit_aovs(scene, shot);
+        let blended = Image {
+            width: w,
+            height: h,
+            pixels: denoised,
+        };
+        denoised = denoise::oidn_signed(&blended, &aux)
+            .map_err(RegularizeError::Denoise)?
+            .pixels;
     }
     timings.denoise_and_predict = start.elapsed().as_secs_f64();
 

@@ -331,6 +331,7 @@ pub fn sequence_options(
         path,
         reproject: Reproject::Exact,
         spatial: None,
+        oidn: false,
         method: regularize::Method::Paper(CBeta::Fixed(opts.c_beta)),
         auto_factor: None,
         show_progress: false,

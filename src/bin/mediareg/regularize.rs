@@ -11,6 +11,8 @@ use mediareg::regularize::pipeline::PilotSize;
 use mediareg::regularize::sequence::CameraPath;
 use mediareg::regularize::{self, ChoiceError, Choices, Method, Motion, Reproject};
 
+use crate::render::DenoiseArg;
+
 use crate::common::{
     fmt3, medium_error, parse_point, prepare, regularize_error, sibling, warn_invalid_samples,
     SceneArgs,
@@ -77,6 +79,11 @@ pub struct RegularizeArgs {
     /// Filter the gradient over frames only (the default with the paper's predictors).
     #[arg(long)]
     pub no_spatial: bool,
+    /// Filter the blended difference (or gradient) with a denoiser instead of the
+    /// bilateral filter: `oidn` (Intel Open Image Denoise, guided by the first hit's
+    /// albedo and normal; R_s stays as rendered). Needs the library: scripts/fetch_oidn.
+    #[arg(long, value_enum, value_name = "DENOISER", conflicts_with = "spatial")]
+    pub denoise: Option<DenoiseArg>,
     /// The prediction function.
     #[arg(long, value_enum, default_value = "difference")]
     pub predict: PredictArg,
@@ -115,10 +122,14 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
         target,
         spatial,
         no_spatial,
+        denoise,
         predict,
         pilot_renders,
         pilot_spp,
     } = cmd;
+    if denoise.is_some() {
+        mediareg::denoise::oidn::load().map_err(|e| anyhow!("--denoise oidn: {e}"))?;
+    }
     let (scene_data, out_exr) = prepare(&args)?;
     let c_beta = regularize::choices::parse_c_beta(&c_beta, fit_spp, fit_at)
         .ok_or_else(|| anyhow!("--c-beta {c_beta}: expected a number or `fit`"))?;
@@ -169,6 +180,7 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
             (_, true) => Some(false),
             _ => None,
         },
+        oidn: denoise.is_some(),
         show_progress: std::io::stderr().is_terminal(),
     };
     let (opts, shot) = regularize::choices::options(&scene_data, &scene_data.shot, &choices)

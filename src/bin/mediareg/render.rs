@@ -7,8 +7,9 @@ use std::sync::Arc;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 
+use mediareg::denoise::{self, AuxUse};
 use mediareg::image;
-use mediareg::integrator::{self, volpath::Gradient, GradientError};
+use mediareg::integrator::{self, aovs, volpath::Gradient, GradientError};
 use mediareg::scene::ray_log::{self, RayLog};
 use mediareg::scene::Scene;
 
@@ -34,6 +35,46 @@ pub struct RenderArgs {
     /// with the ray-log feature.
     #[arg(long, value_name = "FILE")]
     pub ray_log: Option<PathBuf>,
+    /// Denoise the image: `oidn` writes Intel Open Image Denoise's output to OUT.exr
+    /// and the render to OUT_noisy.exr (the directly seen emission is kept out of the
+    /// denoiser). Needs the library: scripts/fetch_oidn.
+    #[arg(long, value_enum, value_name = "DENOISER")]
+    pub denoise: Option<DenoiseArg>,
+    /// Which auxiliary images the denoiser takes: albedo and normal (the default),
+    /// albedo, or none.
+    #[arg(
+        long,
+        value_enum,
+        default_value = "albedo-normal",
+        requires = "denoise"
+    )]
+    pub denoise_aux: AuxArg,
+    /// Also write the albedo and normal of what each pixel sees first
+    /// (OUT_albedo.exr, OUT_normal.exr), the denoiser's auxiliary images.
+    #[arg(long)]
+    pub aovs: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum DenoiseArg {
+    Oidn,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum AuxArg {
+    AlbedoNormal,
+    Albedo,
+    None,
+}
+
+impl From<AuxArg> for AuxUse {
+    fn from(a: AuxArg) -> AuxUse {
+        match a {
+            AuxArg::AlbedoNormal => AuxUse::AlbedoNormal,
+            AuxArg::Albedo => AuxUse::Albedo,
+            AuxArg::None => AuxUse::None,
+        }
+    }
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -47,7 +88,14 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         gradient,
         medium,
         ray_log,
+        denoise,
+        denoise_aux,
+        aovs,
     } = cmd;
+    // Before a long render: the denoiser must be there.
+    if denoise.is_some() {
+        denoise::oidn::load().map_err(|e| anyhow!("--denoise oidn: {e}"))?;
+    }
     let (mut scene_data, out_exr) = prepare(&args)?;
     if ray_log.is_some() {
         if !cfg!(feature = "ray-log") {
@@ -72,6 +120,7 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         &integrator::RenderOptions {
             show_progress: show,
             gradient,
+            seen_emission: denoise.is_some(),
             cancel: Some(Arc::clone(&INTERRUPT)),
             ..Default::default()
         },
@@ -91,8 +140,45 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
     }
     // The spp reached (less than asked for when interrupted), in the EXR header.
     let spp = Some(u64::from(stats.spp));
-    image::write_render_exr(&out_exr, img, spp)?;
-    let mut written = vec![out_exr.display().to_string()];
+    let mut written = Vec::new();
+    let use_aux = AuxUse::from(denoise_aux);
+    let aux = aovs.then(|| aovs::first_hit_aovs(&scene_data, &scene_data.shot));
+    let denoised = match denoise {
+        None => None,
+        Some(DenoiseArg::Oidn) => {
+            let start = std::time::Instant::now();
+            let shot = &scene_data.shot;
+            let out =
+                integrator::denoised::oidn(&scene_data, shot, &rendered, use_aux, aux.as_ref())
+                    .map_err(|e| anyhow!("--denoise oidn: {e}"))?;
+            eprintln!(
+                "denoised with Open Image Denoise {} in {:.2} s",
+                denoise::oidn::load()
+                    .map(|o| o.version_string())
+                    .unwrap_or_default(),
+                start.elapsed().as_secs_f64()
+            );
+            Some(out)
+        }
+    };
+    let shown = denoised.as_ref().unwrap_or(img);
+    if let Some(d) = &denoised {
+        image::write_render_exr(&out_exr, d, spp)?;
+        written.push(out_exr.display().to_string());
+        let noisy = sibling(&out_exr, "_noisy");
+        image::write_render_exr(&noisy, img, spp)?;
+        written.push(noisy.display().to_string());
+    } else {
+        image::write_render_exr(&out_exr, img, spp)?;
+        written.push(out_exr.display().to_string());
+    }
+    if let Some(a) = &aux {
+        for (suffix, im) in [("_albedo", &a.albedo), ("_normal", &a.normal)] {
+            let path = sibling(&out_exr, suffix);
+            image::write_exr(&path, im)?;
+            written.push(path.display().to_string());
+        }
+    }
     if let Some(g) = &rendered.gradient {
         let out_grad = sibling(&out_exr, "_dalbedo");
         image::write_render_exr(&out_grad, g, spp)?;
@@ -100,7 +186,7 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
     }
     if !args.no_png {
         let out_png = out_exr.with_extension("png");
-        image::write_png(&out_png, img)?;
+        image::write_png(&out_png, shown)?;
         written.push(out_png.display().to_string());
     }
     warn_invalid_samples(stats.invalid_samples);

@@ -1,0 +1,15 @@
+//! What one camera path returns to the render driver.
+
+use glam::Vec3;
+
+/// One camera path's contributions: its radiance, its second image's (the derivative or
+/// difference asked for; 0 for none), and the part of the radiance that is emission seen
+/// directly: the emitter at the camera ray's first intersection, or the environment where
+/// it escapes, the camera in no medium (the part a denoiser keeps out: `denoise`;
+/// `aovs::sharpen_seen_emission` traces the same quantity).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PathSample {
+    pub radiance: Vec3,
+    pub second: Vec3,
+    pub seen_emission: Vec3,
+}
