@@ -211,3 +211,37 @@ def test_regularize_bad_arguments():
             mediareg.regularize(cube, spp=1, frames=1, **kwargs)
     with pytest.raises(ValueError, match="no medium"):
         mediareg.regularize(mediareg.load_file(scene("cbox"), res=8), spp=1, factor=0.9)
+
+
+def test_denoise_equals_cli_bit_for_bit(cli, tmp_path):
+    out = tmp_path / "cli.exr"
+    r = cli("render", scene("cbox"), "--spp", 8, "--seed", 2, "--no-png", "--denoise", "oidn",
+            "-o", out)
+    assert r.returncode == 0, r.stderr
+    s = mediareg.load_file(scene("cbox"))
+    img = mediareg.render(s, spp=8, seed=2, denoise="oidn")
+    assert same_bits(img, mediareg.read_exr(out))
+    noisy = mediareg.render(s, spp=8, seed=2)
+    assert same_bits(noisy, mediareg.read_exr(tmp_path / "cli_noisy.exr"))
+    assert not same_bits(img, noisy)
+
+
+def test_denoise_arrays():
+    s = mediareg.load_file(scene("cbox"))
+    noisy = mediareg.render(s, spp=4, seed=1)
+    a = mediareg.denoise(noisy)
+    assert a.shape == noisy.shape and a.dtype == np.float32
+    assert same_bits(a, mediareg.denoise(noisy))
+    # Smoother than its input: the mean squared difference of neighbours falls.
+    rough = lambda x: float(np.mean((x[:, 1:] - x[:, :-1]) ** 2))
+    assert rough(a) < 0.5 * rough(noisy)
+    albedo = np.full_like(noisy, 0.5)
+    assert mediareg.denoise(noisy, albedo=albedo).shape == noisy.shape
+    bad = noisy.copy()
+    bad[3, 4, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        mediareg.denoise(bad)
+    with pytest.raises(ValueError, match="albedo"):
+        mediareg.denoise(noisy, normal=albedo)
+    with pytest.raises(ValueError, match="oidn"):
+        mediareg.render(s, spp=1, denoise="bilateral")

@@ -3,8 +3,8 @@
 //! the Python module's `denoise` run it.
 //!
 //! What goes through the filter: the radiance without the emission the camera sees
-//! directly (an emitter or the sky, unscattered, through no medium), which is added back
-//! afterwards as rendered,
+//! directly (an emitting surface at the camera ray's first hit, through no medium),
+//! which is added back afterwards (sharpened at the emitters' edges: `integrator::aovs`),
 //!
 //!   out = OIDN(L − E, albedo, normal) + E,                                     (D1)
 //!

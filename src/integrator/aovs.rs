@@ -131,8 +131,8 @@ const EDGE_PROBES: u32 = 16;
 pub const EDGE_RAYS: u32 = 1024;
 
 /// What the camera ray's first intersection shows of an emitter, as the integrators
-/// count it in `PathSample::seen_emission`: which emitter (`u32::MAX` for the
-/// environment) and its emitted radiance; None where nothing emitting is seen, or where
+/// count it in `PathSample::seen_emission`: which emitter and its emitted radiance; None
+/// where no emitting surface is seen (the environment is left to the denoiser), or where
 /// the `path` integrator could drop the sample (an emitter with a null BSDF, whose
 /// sample counts only if the path later scatters), which this pass cannot tell.
 fn seen_at_first(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(u32, Vec3)> {
@@ -148,10 +148,7 @@ fn seen_at_first(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(u32, V
             }
             Some((ei, scene.emitters[ei as usize].eval(h.sh_frame.n, d)))
         }
-        None => {
-            let ei = scene.environment?;
-            Some((u32::MAX, scene.emitters[ei as usize].eval(Vec3A::ZERO, d)))
-        }
+        None => None,
     }
 }
 

@@ -47,7 +47,7 @@ pub fn sample(
         let n_end = si.map_or(Vec3A::ZERO, |h| h.sh_frame.n);
         result += scene.emitters[ei as usize].eval(n_end, d);
     }
-    let seen_emission = result;
+    let seen_emission = if si.is_some() { result } else { Vec3::ZERO };
     let done = |radiance| PathSample {
         radiance,
         second: Vec3::ZERO,

@@ -67,7 +67,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
             };
             let l = throughput * le * mis_weight(prev.bsdf_pdf, em_pdf);
             result += l;
-            if depth == 0 {
+            if depth == 0 && si.is_some() {
                 seen_emission = l;
             }
         }

@@ -4,9 +4,10 @@ use glam::Vec3;
 
 /// One camera path's contributions: its radiance, its second image's (the derivative or
 /// difference asked for; 0 for none), and the part of the radiance that is emission seen
-/// directly: the emitter at the camera ray's first intersection, or the environment where
-/// it escapes, the camera in no medium (the part a denoiser keeps out: `denoise`;
-/// `aovs::sharpen_seen_emission` traces the same quantity).
+/// directly: the emitting surface at the camera ray's first intersection, the camera in
+/// no medium (the part a denoiser keeps out: `denoise`; `aovs::sharpen_seen_emission`
+/// traces the same quantity). The environment is not part of it: a sky is smooth, and
+/// the denoiser did better with it left in (docs/denoise.md).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PathSample {
     pub radiance: Vec3,

@@ -600,7 +600,7 @@ pub fn sample(
             result += beta * le;
             d_result += d_beta * le;
             // At the camera ray's first intersection, as `aovs::seen_emission` traces it.
-            if depth == 0 && null_crossings == 0 && medium.is_none() {
+            if depth == 0 && null_crossings == 0 && medium.is_none() && si.is_some() {
                 seen_emission = le;
             }
         }
