@@ -6,6 +6,7 @@
 //! understand; [`Scene::new`] then prepares them for rendering.
 
 mod bsdf;
+pub mod conductor_ior;
 mod emitter;
 mod heterogeneous;
 mod instance;

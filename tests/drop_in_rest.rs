@@ -1,0 +1,253 @@
+//! The rest of the drop-in readings real scene files need (issue 42): Mitsuba 3's named
+//! conductor materials, a constant `<spectrum>` where a rough BSDF's `alpha` goes, its
+//! other samplers (`sample_count` rounded as Mitsuba rounds it), `hdrfilm`'s luminance
+//! and alpha pixel formats, and instances that read each mesh file once.
+//!
+//! Renders against Mitsuba 3 follow tests/volpath_equivalence.rs (independent chunks,
+//! per-pixel z-scores, a false-alarm probability of 1e-6), each with a power test that
+//! the same comparison fails on a small change.
+
+mod common;
+
+use common::scene_text::{load_or_build_error, load_text, SENSOR};
+use common::{check_against_reference, check_edited_against_reference, root};
+use glam::Vec3;
+use mediareg::bsdf::Bsdf;
+
+const CHUNKS: usize = 16;
+const SPP: u32 = 128;
+
+// ---------------------------------------------------------------------------------
+// named conductors
+// ---------------------------------------------------------------------------------
+
+/// Mitsuba 3's RGB η and κ for each material it ships (tests/fixtures, written by
+/// scripts/conductor_ior.py from scalar_rgb's `mi.traverse`).
+fn mitsuba_conductors() -> Vec<(String, Vec3, Vec3)> {
+    let text = std::fs::read_to_string(root().join("tests/fixtures/conductor_ior_mitsuba.json"))
+        .expect("fixture");
+    let json: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let v3 = |v: &serde_json::Value| {
+        Vec3::from_slice(
+            &v.as_array()
+                .unwrap()
+                .iter()
+                .map(|c| c.as_f64().unwrap() as f32)
+                .collect::<Vec<_>>(),
+        )
+    };
+    json["materials"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(name, m)| (name.clone(), v3(&m["eta"]), v3(&m["k"])))
+        .collect()
+}
+
+/// The conductor a one-sphere scene with `bsdf` builds.
+fn conductor_of(tag: &str, bsdf: &str) -> (Vec3, Vec3) {
+    let text = format!(
+        r#"<scene version="3.0.0">{SENSOR}
+    <shape type="sphere">{bsdf}</shape>
+</scene>"#
+    );
+    let desc = load_text("drop_in_rest", tag, &text, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let s = common::scene_text::build_desc(tag, &desc);
+    match &s.bsdfs[..] {
+        [Bsdf::Conductor(c)] => (c.eta, c.k),
+        [Bsdf::RoughConductor(c)] => (c.eta, c.k),
+        other => panic!("{tag}: {other:?}"),
+    }
+}
+
+/// Every material Mitsuba 3 ships gives, in `conductor` and `roughconductor`, the η and
+/// κ Mitsuba 3's RGB variant computes from the same spectral tables (to float
+/// rounding: 2e-6 relative).
+#[test]
+fn named_conductors_match_mitsuba_values() {
+    let all = mitsuba_conductors();
+    assert!(all.len() >= 70, "{} materials", all.len());
+    assert_eq!(
+        all.len(),
+        mediareg::load::conductor_ior::names().len(),
+        "mediareg and the fixture list different materials"
+    );
+    let mut worst = 0f32;
+    for (name, eta, k) in &all {
+        for plugin in ["conductor", "roughconductor"] {
+            let bsdf =
+                format!(r#"<bsdf type="{plugin}"><string name="material" value="{name}"/></bsdf>"#);
+            let (e, kk) = conductor_of(&format!("{plugin}_{name}"), &bsdf);
+            for (ours, theirs, what) in [(e, *eta, "eta"), (kk, *k, "k")] {
+                let rel =
+                    ((ours - theirs).abs() / theirs.abs().max(Vec3::splat(1e-3))).max_element();
+                worst = worst.max(rel);
+                assert!(
+                    rel <= 2e-6,
+                    "{plugin} {name} {what}: mediareg {ours}, Mitsuba 3 {theirs}"
+                );
+            }
+        }
+    }
+    println!(
+        "{} materials, worst relative difference {worst:e}",
+        all.len()
+    );
+}
+
+/// An unknown name (names are case-sensitive, as Mitsuba's file lookup) is refused at
+/// its line with the list; a material together with eta or k is refused, as by Mitsuba.
+#[test]
+fn named_conductor_refusals() {
+    let scene = |bsdf: &str| {
+        format!(
+            r#"<scene version="3.0.0">{SENSOR}
+    <shape type="sphere"><bsdf type="conductor">
+        {bsdf}
+    </bsdf></shape>
+</scene>"#
+        )
+    };
+    let e = load_or_build_error(
+        "gold",
+        load_text(
+            "drop_in_rest",
+            "gold",
+            &scene(r#"<string name="material" value="gold"/>"#),
+            &[],
+        ),
+    );
+    assert!(e.contains("scene.xml:4:") && e.contains("\"gold\""), "{e}");
+    assert!(e.contains("Au,") && e.contains("Cu_palik"), "{e}");
+    for (tag, extra) in [
+        ("eta", r#"<float name="eta" value="0.2"/>"#),
+        ("k", r#"<float name="k" value="3"/>"#),
+    ] {
+        let text = scene(&format!(r#"<string name="material" value="Au"/>{extra}"#));
+        let e = load_or_build_error(tag, load_text("drop_in_rest", tag, &text, &[]));
+        assert!(e.contains("scene.xml:3:") && e.contains("not both"), "{e}");
+    }
+}
+
+/// named_conductor.xml (a smooth `Au` and a rough `Cu` sphere whose alpha is a constant
+/// `<spectrum>`) against Mitsuba 3.
+#[test]
+fn named_conductor_matches_mitsuba() {
+    let c = check_against_reference("named_conductor", "named_conductor", &[], CHUNKS, SPP, 51);
+    assert!(c.passed, "{c}");
+}
+
+/// The same comparison fails when gold's κ is 3% off (the material replaced by its RGB
+/// values, k scaled).
+#[test]
+fn named_conductor_comparison_detects_k_3_percent_off() {
+    let all = mitsuba_conductors();
+    let (_, eta, k) = all.iter().find(|(n, _, _)| n == "Au").unwrap();
+    let k = *k * 0.97;
+    let rgb = |v: Vec3| format!("{}, {}, {}", v.x, v.y, v.z);
+    let explicit = format!(
+        r#"<rgb name="eta" value="{}"/><rgb name="k" value="{}"/>"#,
+        rgb(*eta),
+        rgb(k)
+    );
+    let scene = root().join("mitsuba_scenes/named_conductor.xml");
+    let c = check_edited_against_reference(
+        "named_conductor",
+        &scene,
+        &root().join("mitsuba_scenes"),
+        &[],
+        &[(r#"<string name="material" value="Au"/>"#, &explicit)],
+        None,
+        CHUNKS,
+        SPP,
+        52,
+    );
+    assert!(!c.passed, "gold's k 3% off went unnoticed: {c}");
+}
+
+// ---------------------------------------------------------------------------------
+// a constant spectrum where a float goes
+// ---------------------------------------------------------------------------------
+
+/// The same comparison fails when the copper's alpha (the constant spectrum) is 0.17
+/// for 0.2.
+#[test]
+fn named_conductor_comparison_detects_alpha_off() {
+    let c = check_against_reference(
+        "named_conductor",
+        "named_conductor",
+        &[("alpha", "0.17")],
+        CHUNKS,
+        SPP,
+        53,
+    );
+    assert!(!c.passed, "alpha 0.17 for 0.2 went unnoticed: {c}");
+}
+
+/// The roughness `roughconductor` and `roughdielectric` build from `alpha` (or
+/// `alpha_u`, `alpha_v`) given as `value`.
+fn alphas(tag: &str, plugin: &str, props: &str) -> Result<(f32, f32), String> {
+    let text = format!(
+        r#"<scene version="3.0.0">{SENSOR}
+    <shape type="rectangle"><bsdf type="{plugin}">{props}</bsdf></shape>
+</scene>"#
+    );
+    let desc = load_text("drop_in_rest", tag, &text, &[])?;
+    let s = mediareg::load::build_scene(&desc, &Default::default()).map_err(|e| e.to_string())?;
+    Ok(match &s.bsdfs[..] {
+        [Bsdf::RoughConductor(c)] => (c.distr.alpha_u, c.distr.alpha_v),
+        [Bsdf::RoughDielectric(c)] => (c.distr.alpha_u, c.distr.alpha_v),
+        other => panic!("{tag}: {other:?}"),
+    })
+}
+
+/// As in Mitsuba 3 (an unbounded texture's `eval_1`), a rough conductor's or
+/// dielectric's roughness may be a constant `<spectrum>` (the same value as the float),
+/// an `<rgb>` (its channel mean) or a sampled spectrum (its colour's mean);
+/// `roughplastic`'s stays a float, which Mitsuba 3 reads with `get<float>`.
+#[test]
+fn roughness_takes_a_spectrum_as_mitsuba() {
+    for plugin in ["roughconductor", "roughdielectric"] {
+        let a = |tag: &str, props: &str| {
+            alphas(&format!("{plugin}_{tag}"), plugin, props).unwrap_or_else(|e| panic!("{e}"))
+        };
+        let float = a("float", r#"<float name="alpha" value="0.3"/>"#);
+        assert_eq!(float, (0.3, 0.3));
+        assert_eq!(
+            a("spectrum", r#"<spectrum name="alpha" value="0.3"/>"#),
+            float
+        );
+        assert_eq!(
+            a("rgb", r#"<rgb name="alpha" value="0.2, 0.3, 0.4"/>"#).0,
+            (0.2f32 + 0.3 + 0.4) / 3.0
+        );
+        let uv = a(
+            "uv",
+            r#"<spectrum name="alpha_u" value="0.1"/><spectrum name="alpha_v" value="0.4"/>"#,
+        );
+        assert_eq!(uv, (0.1, 0.4));
+        // A flat sampled spectrum of 0.3 is (almost) grey 0.3 after the D65 weighting.
+        let sampled = a(
+            "sampled",
+            r#"<spectrum name="alpha" value="360:0.3, 830:0.3"/>"#,
+        );
+        assert!((sampled.0 - 0.3).abs() < 2e-3, "{sampled:?}");
+        let e = alphas(
+            &format!("{plugin}_neg"),
+            plugin,
+            r#"<spectrum name="alpha" value="-0.1"/>"#,
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("scene.xml:3:") && e.contains("out of range"),
+            "{e}"
+        );
+    }
+    let text = format!(
+        r#"<scene version="3.0.0">{SENSOR}
+    <shape type="rectangle"><bsdf type="roughplastic"><spectrum name="alpha" value="0.3"/></bsdf></shape>
+</scene>"#
+    );
+    let e = load_or_build_error("plastic", load_text("drop_in_rest", "plastic", &text, &[]));
+    assert!(e.contains("scene.xml:3:") && e.contains("<float>"), "{e}");
+}
