@@ -251,3 +251,183 @@ fn roughness_takes_a_spectrum_as_mitsuba() {
     let e = load_or_build_error("plastic", load_text("drop_in_rest", "plastic", &text, &[]));
     assert!(e.contains("scene.xml:3:") && e.contains("<float>"), "{e}");
 }
+
+// ---------------------------------------------------------------------------------
+// samplers
+// ---------------------------------------------------------------------------------
+
+/// Mitsuba 3's sample counts (tests/fixtures, written by scripts/sampler_counts.py):
+/// for each sampler, (asked, rendered) pairs.
+fn mitsuba_sample_counts() -> Vec<(String, Vec<(u32, u32)>)> {
+    let text = std::fs::read_to_string(root().join("tests/fixtures/sampler_counts_mitsuba.json"))
+        .expect("fixture");
+    let json: serde_json::Value = serde_json::from_str(&text).expect("json");
+    json["counts"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(name, pairs)| {
+            let pairs = pairs
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|p| (p[0].as_u64().unwrap() as u32, p[1].as_u64().unwrap() as u32))
+                .collect();
+            (name.clone(), pairs)
+        })
+        .collect()
+}
+
+/// A scene whose sensor holds `sampler`, built with `spp` as `--spp`: its shot's spp,
+/// seed and warnings.
+fn sampler_shot(
+    tag: &str,
+    sampler: &str,
+    spp: Option<u32>,
+) -> Result<(u32, u64, Vec<String>), String> {
+    let text = format!(
+        r#"<scene version="3.0.0"><sensor type="perspective">
+    {sampler}
+    <film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/></film></sensor>
+</scene>"#
+    );
+    let desc = load_text("drop_in_rest", tag, &text, &[])?;
+    let overrides = mediareg::BuildOverrides {
+        spp,
+        ..Default::default()
+    };
+    let s = mediareg::load::build_scene(&desc, &overrides).map_err(|e| e.to_string())?;
+    Ok((s.shot.spp, s.shot.seed, s.warnings.clone()))
+}
+
+/// Each sampler renders the sample count Mitsuba 3 renders for every count in the
+/// fixture (1 to 129 and larger ones): as the file's `sample_count`, and as `--spp`.
+#[test]
+fn sample_counts_round_as_mitsuba() {
+    use mediareg::load::sampler::SamplerKind;
+    let all = mitsuba_sample_counts();
+    assert_eq!(all.len(), SamplerKind::ALL.len());
+    let mut rounded = 0;
+    for (name, pairs) in &all {
+        let kind = SamplerKind::ALL
+            .into_iter()
+            .find(|k| k.name() == name)
+            .unwrap_or_else(|| panic!("mediareg lacks {name}"));
+        for &(asked, want) in pairs {
+            assert_eq!(
+                kind.sample_count(asked),
+                want,
+                "{name} sample_count {asked}"
+            );
+            rounded += usize::from(asked != want);
+        }
+        // Through the loader, in the file and on the command line.
+        for &(asked, want) in pairs.iter().step_by(9) {
+            let xml = format!(
+                r#"<sampler type="{name}"><integer name="sample_count" value="{asked}"/></sampler>"#
+            );
+            let (spp, _, notes) = sampler_shot(&format!("{name}_{asked}"), &xml, None).unwrap();
+            assert_eq!(spp, want, "{name}: file sample_count {asked}");
+            let rounding_noted = notes.iter().any(|n| n.contains("rounded to"));
+            assert_eq!(rounding_noted, asked != want, "{name} {asked}: {notes:?}");
+            let plain = format!(r#"<sampler type="{name}"/>"#);
+            let (spp, _, _) =
+                sampler_shot(&format!("{name}_spp{asked}"), &plain, Some(asked)).unwrap();
+            assert_eq!(spp, want, "{name}: --spp {asked}");
+        }
+    }
+    println!("{rounded} of the fixture's counts are rounded by Mitsuba 3");
+    assert!(rounded > 100);
+}
+
+/// The samplers' own parameters are read (`seed`; `jitter`; `strength`), each
+/// structured sampler says in one line that mediareg's sampler renders it, and what a
+/// sampler does not take is refused as by Mitsuba 3, naming the file and line.
+#[test]
+fn sampler_parameters() {
+    let (spp, seed, notes) = sampler_shot(
+        "orthogonal",
+        r#"<sampler type="orthogonal"><integer name="sample_count" value="49"/><integer name="seed" value="7"/><boolean name="jitter" value="false"/><integer name="strength" value="3"/></sampler>"#,
+        None,
+    )
+    .unwrap();
+    assert_eq!((spp, seed), (49, 7));
+    let note: Vec<&String> = notes.iter().filter(|n| n.contains("sampler")).collect();
+    assert_eq!(note.len(), 1, "{notes:?}");
+    assert!(
+        note[0].contains("scene.xml:2:")
+            && note[0].contains("\"orthogonal\" (jitter false, strength 3)")
+            && note[0].contains("mediareg's sampler"),
+        "{}",
+        note[0]
+    );
+    let (_, _, notes) =
+        sampler_shot("independent", r#"<sampler type="independent"/>"#, None).unwrap();
+    assert!(!notes.iter().any(|n| n.contains("sampler")), "{notes:?}");
+    for (tag, xml, needle) in [
+        (
+            "ld_jitter",
+            r#"<sampler type="ldsampler"><boolean name="jitter" value="true"/></sampler>"#,
+            "unreferenced property \"jitter\"",
+        ),
+        (
+            "strat_strength",
+            r#"<sampler type="stratified"><integer name="strength" value="2"/></sampler>"#,
+            "unreferenced property \"strength\"",
+        ),
+        (
+            "sobol",
+            r#"<sampler type="sobol"/>"#,
+            "independent, stratified, multijitter, orthogonal, ldsampler",
+        ),
+    ] {
+        let e = sampler_shot(tag, xml, None).unwrap_err();
+        assert!(
+            e.contains("scene.xml:2:") && e.contains(needle),
+            "{tag}: {e}"
+        );
+    }
+}
+
+/// samplers.xml, rendered with each of Mitsuba 3's five samplers, against Mitsuba 3's
+/// render of the file (with `stratified`).
+#[test]
+fn every_sampler_matches_mitsuba() {
+    for (i, sampler) in [
+        "independent",
+        "stratified",
+        "multijitter",
+        "orthogonal",
+        "ldsampler",
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let c = check_against_reference(
+            "samplers",
+            "samplers",
+            &[("sampler", sampler)],
+            CHUNKS,
+            144,
+            61 + 100 * i as u64,
+        );
+        assert!(c.passed, "{sampler}: {c}");
+    }
+}
+
+/// The same comparison fails when a sphere's reflectance is 2% off (with `ldsampler`).
+#[test]
+fn sampler_comparison_detects_reflectance_2_percent_off() {
+    let c = check_against_reference(
+        "samplers",
+        "samplers",
+        &[
+            ("sampler", "ldsampler"),
+            ("reflectance", "0.714, 0.51, 0.306"),
+        ],
+        CHUNKS,
+        144,
+        62,
+    );
+    assert!(!c.passed, "a 2% reflectance change went unnoticed: {c}");
+}

@@ -13,6 +13,7 @@ mod instance;
 mod integrator;
 mod medium;
 pub mod props;
+pub mod sampler;
 mod sensor;
 mod shape;
 pub mod spectrum;
@@ -146,9 +147,9 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
             ))
             .with_hint("sensors are numbered from 0 in file order"));
     }
-    let (camera, camera_medium, mut film, spp, seed) = if sensors.is_empty() {
-        let (camera, film, spp, seed) = b.default_sensor();
-        (camera, None, film, spp, seed)
+    let (camera, camera_medium, mut film, sampler) = if sensors.is_empty() {
+        let (camera, film, sampler) = b.default_sensor();
+        (camera, None, film, sampler)
     } else {
         // Mitsuba builds every sensor: check them all, render the chosen one.
         let mut chosen = None;
@@ -167,6 +168,20 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
             ));
         }
         chosen.expect("the chosen sensor is in range")
+    };
+    b.warnings.extend(sampler.note.clone());
+    let spp = match overrides.spp {
+        Some(n) => {
+            let rounded = sampler.kind.sample_count(n);
+            if rounded != n {
+                b.warnings.push(format!(
+                    "--spp {n}: sampler \"{}\" renders {rounded} samples per pixel, as Mitsuba 3 rounds it",
+                    sampler.kind.name()
+                ));
+            }
+            rounded
+        }
+        None => sampler.spp,
     };
     if let Some([x, y, w, h]) = overrides.crop {
         if w == 0 || h == 0 || x + w > film.width || y + h > film.height {
@@ -200,8 +215,8 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         shot: Shot {
             camera,
             film,
-            spp: overrides.spp.unwrap_or(spp),
-            seed: overrides.seed.unwrap_or(seed),
+            spp,
+            seed: overrides.seed.unwrap_or(sampler.seed),
         },
         integrator,
         warnings: b.warnings,
