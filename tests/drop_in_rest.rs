@@ -431,3 +431,95 @@ fn sampler_comparison_detects_reflectance_2_percent_off() {
     );
     assert!(!c.passed, "a 2% reflectance change went unnoticed: {c}");
 }
+
+// ---------------------------------------------------------------------------------
+// instances read each mesh file once
+// ---------------------------------------------------------------------------------
+
+/// The triangles' positions of every mesh a scene builds, in order.
+fn mesh_positions(s: &mediareg::scene::Scene) -> Vec<Vec<glam::Vec3A>> {
+    s.geometries
+        .iter()
+        .filter_map(|g| match g {
+            mediareg::geometry::shape::Geometry::Mesh(m) => Some(m.positions.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+/// instances_mesh.xml (three instances of a group holding an OBJ, and the same OBJ as
+/// a shape of its own) reads the file once; each placed copy is bit for bit the copy
+/// a scene with that one instance alone builds from its own read of the file.
+#[test]
+fn instances_read_each_mesh_file_once() {
+    let scene = root().join("mitsuba_scenes/instances_mesh.xml");
+    let opts = common::options(&[]);
+    let desc = mediareg::xml::load_file(&scene, &opts).unwrap_or_else(|e| panic!("{e}"));
+    let before = mediareg::load::mesh_files_read();
+    let all = common::scene_text::build_desc("instances_mesh", &desc);
+    assert_eq!(
+        mediareg::load::mesh_files_read() - before,
+        1,
+        "box.obj read more than once"
+    );
+    let copies = mesh_positions(&all);
+    assert_eq!(copies.len(), 4, "three instances and the block");
+    // One instance at a time: the other two and the block removed from the text.
+    let text = std::fs::read_to_string(&scene).unwrap();
+    let starts: Vec<usize> = text
+        .match_indices(r#"<shape type="instance">"#)
+        .map(|(i, _)| i)
+        .collect();
+    let end_of = |i: usize| i + text[i..].find("</shape>").unwrap() + "</shape>".len();
+    let block = text.rfind(r#"<shape type="obj">"#).unwrap();
+    for (k, &keep) in starts.iter().enumerate() {
+        let mut cut = text.clone();
+        let mut spans: Vec<(usize, usize)> = starts
+            .iter()
+            .filter(|&&i| i != keep)
+            .map(|&i| (i, end_of(i)))
+            .collect();
+        spans.push((block, end_of(block)));
+        spans.sort();
+        for &(a, b) in spans.iter().rev() {
+            cut.replace_range(a..b, "");
+        }
+        // The meshes' folder on the search path, so meshes/box.obj resolves.
+        let dir = common::scene_text::tmp_dir("drop_in_rest", &format!("instance_{k}"));
+        let path = common::scene_text::write(&dir, "scene.xml", &cut);
+        let d = mediareg::xml::load_file(
+            &path,
+            &common::options_in(&[], vec![root().join("mitsuba_scenes")]),
+        );
+        let one = mesh_positions(&common::scene_text::build_desc(
+            "one",
+            &d.unwrap_or_else(|e| panic!("{e}")),
+        ));
+        assert_eq!(one.len(), 1);
+        assert!(
+            copies[k] == one[0],
+            "instance {k}: the shared read built another mesh"
+        );
+    }
+}
+
+/// instances_mesh.xml against Mitsuba 3.
+#[test]
+fn instances_mesh_matches_mitsuba() {
+    let c = check_against_reference("instances_mesh", "instances_mesh", &[], CHUNKS, SPP, 71);
+    assert!(c.passed, "{c}");
+}
+
+/// The same comparison fails when the second instance moves by 0.02.
+#[test]
+fn instances_mesh_comparison_detects_an_instance_moved() {
+    let c = check_against_reference(
+        "instances_mesh",
+        "instances_mesh",
+        &[("tree2_x", "0.12")],
+        CHUNKS,
+        SPP,
+        72,
+    );
+    assert!(!c.passed, "an instance moved by 0.02 went unnoticed: {c}");
+}

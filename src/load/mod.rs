@@ -21,13 +21,14 @@ mod texture;
 mod volume;
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{DMat4, Mat4};
 
 use crate::bsdf::Bsdf;
 use crate::emitter::Emitter;
 use crate::error::{Result, SceneError};
+use crate::geometry::mesh::RawMesh;
 use crate::geometry::shape::Geometry;
 use crate::medium::HomogeneousMedium;
 use crate::scene::shot::Shot;
@@ -37,6 +38,7 @@ use crate::xml::LoadOptions;
 use props::Props;
 
 pub use emitter::UNIFORM_SPECTRUM_RGB;
+pub use shape::mesh_files_read;
 
 /// The objects translated so far, in `Scene`'s order, and the ids they were declared
 /// under (a `<ref>` names one); shared by the per-plugin files.
@@ -47,6 +49,8 @@ struct Builder<'a> {
     media: Vec<HomogeneousMedium>,
     medium_ids: HashMap<ObjId, u32>,
     geometries: Vec<Geometry>,
+    /// Mesh files read so far, by (plugin, path, shape_index): read once, cloned per use.
+    meshes: HashMap<(String, PathBuf, u32), RawMesh>,
     shapes: Vec<ShapeInfo>,
     emitters: Vec<Emitter>,
     environment: Option<u32>,
@@ -83,6 +87,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         media: Vec::new(),
         medium_ids: HashMap::new(),
         geometries: Vec::new(),
+        meshes: HashMap::new(),
         shapes: Vec::new(),
         emitters: Vec::new(),
         environment: None,
