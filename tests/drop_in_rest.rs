@@ -523,3 +523,146 @@ fn instances_mesh_comparison_detects_an_instance_moved() {
     );
     assert!(!c.passed, "an instance moved by 0.02 went unnoticed: {c}");
 }
+
+// ---------------------------------------------------------------------------------
+// films: luminance and alpha
+// ---------------------------------------------------------------------------------
+
+/// films.xml at `pixel_format` (and `params`), one render at `seed`: the image and the
+/// alpha, if the film has one.
+fn film_render(
+    params: &[(&str, &str)],
+    spp: u32,
+    seed: u64,
+) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
+    let scene = root().join("mitsuba_scenes/films.xml");
+    let s = common::load_seeded(&scene, params, spp, seed);
+    let r = mediareg::integrator::render(&s, &s.shot, &Default::default());
+    (r.image.pixels, r.alpha.map(|a| a.pixels))
+}
+
+/// The films scene's alpha (luminance_alpha, rendered in `CHUNKS` chunks from `seed`
+/// with `params`) against Mitsuba 3's (`reference/films_alpha`, made with --alpha).
+fn check_alpha(params: &[(&str, &str)], seed: u64) -> mediareg::image::stats::Comparison {
+    use mediareg::image::stats::{compare, Estimate};
+    let scene = root().join("mitsuba_scenes/films.xml");
+    let r = common::reference("films_alpha", &scene);
+    let chunks: Vec<Vec<[f32; 3]>> = (0..CHUNKS as u64)
+        .map(|i| film_render(params, SPP, seed + i).1.expect("an alpha film"))
+        .collect();
+    let layout = common::layout(&scene, params);
+    let ours = Estimate::from_chunks(&chunks, layout);
+    let c = compare(
+        &ours,
+        &r.estimate,
+        layout,
+        common::ALPHA,
+        common::FALSE_ALARM,
+    );
+    println!("films_alpha {params:?}: {c}");
+    c
+}
+
+/// At one seed the formats hold the same render: luminance is Mitsuba's Y of the RGB
+/// (0.212671 R + 0.715160 G + 0.072169 B), rgba's colour is rgb's, the alpha the same
+/// with either colour; rgb and luminance have no alpha. The alpha is 0 where the rays
+/// meet nothing, 1 on the sphere, and strictly between in some fog pixels.
+#[test]
+fn pixel_formats_hold_the_same_render() {
+    let at = |f: &str| film_render(&[("pixel_format", f)], 16, 5);
+    let (rgb, none) = at("rgb");
+    assert!(none.is_none());
+    let (rgba, alpha) = at("rgba");
+    assert_eq!(rgb, rgba, "rgba's colour differs from rgb's");
+    let (y, none) = at("luminance");
+    assert!(none.is_none());
+    let (ya, alpha2) = at("luminance_alpha");
+    assert_eq!(y, ya);
+    for (c, l) in rgb.iter().zip(&y) {
+        let want = c[0] * 0.212671 + c[1] * 0.715160 + c[2] * 0.072169;
+        assert_eq!(*l, [want; 3]);
+    }
+    let alpha = alpha.unwrap();
+    assert_eq!(Some(&alpha), alpha2.as_ref());
+    let a: Vec<f32> = alpha.iter().map(|p| p[0]).collect();
+    assert!(a.iter().all(|&v| (0.0..=1.0).contains(&v)));
+    assert!(a.contains(&0.0) && a.contains(&1.0), "{a:?}");
+    assert!(
+        a.iter().any(|&v| v > 0.05 && v < 0.95),
+        "no partial alpha in the fog"
+    );
+}
+
+/// A luminance_alpha film written by `mediareg render` has the channels Y and A, and
+/// the comparison tools read it (Y as grey; `read_exr_alpha` the alpha); rgba writes
+/// R, G, B, A.
+#[test]
+fn luminance_alpha_exr_is_written_and_read() {
+    let dir = common::scene_text::tmp_dir("drop_in_rest", "films_cli");
+    let scene = root().join("mitsuba_scenes/films.xml");
+    for (format, rgb) in [("luminance_alpha", false), ("rgba", true)] {
+        let out = dir.join(format!("{format}.exr"));
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_mediareg"))
+            .args([
+                "render",
+                scene.to_str().unwrap(),
+                "--spp",
+                "4",
+                "--no-png",
+                "-t",
+                "1",
+            ])
+            .args([
+                "-D",
+                &format!("pixel_format={format}"),
+                "-o",
+                out.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            status.status.success(),
+            "{}",
+            String::from_utf8_lossy(&status.stderr)
+        );
+        let img = mediareg::image::read_exr(&out).unwrap();
+        let alpha = mediareg::image::read_exr_alpha(&out)
+            .unwrap()
+            .expect("an A channel");
+        let (want, want_alpha) = film_render(&[("pixel_format", format)], 4, 0);
+        assert_eq!(img.pixels, want, "{format}");
+        let want_alpha: Vec<f32> = want_alpha.unwrap().iter().map(|p| p[0]).collect();
+        assert_eq!(alpha, want_alpha, "{format}");
+        assert_eq!(rgb, img.pixels.iter().any(|p| p[0] != p[1]), "{format}");
+    }
+}
+
+/// The luminance (luminance_alpha film) against Mitsuba 3's Y.
+#[test]
+fn luminance_matches_mitsuba() {
+    let c = check_against_reference("films", "films", &[], CHUNKS, SPP, 81);
+    assert!(c.passed, "{c}");
+}
+
+/// The same comparison fails when the fog's albedo is 0.78 for 0.8.
+#[test]
+fn luminance_comparison_detects_albedo_off() {
+    let c = check_against_reference("films", "films", &[("albedo", "0.78")], CHUNKS, SPP, 82);
+    assert!(!c.passed, "albedo 0.78 for 0.8 went unnoticed: {c}");
+}
+
+/// The alpha (luminance_alpha, and rgba) against Mitsuba 3's.
+#[test]
+fn alpha_matches_mitsuba() {
+    let c = check_alpha(&[], 83);
+    assert!(c.passed, "{c}");
+    let c = check_alpha(&[("pixel_format", "rgba")], 183);
+    assert!(c.passed, "rgba: {c}");
+}
+
+/// The same comparison fails when the fog's sigma_t is 5% off.
+#[test]
+fn alpha_comparison_detects_sigma_t_off() {
+    let c = check_alpha(&[("sigma_t", "1.575")], 84);
+    assert!(!c.passed, "sigma_t 5% off went unnoticed in the alpha: {c}");
+}

@@ -22,7 +22,8 @@ use crate::sampling::mis_weight;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
 
-/// One radiance sample along the camera ray (o, d).
+/// One radiance sample along the camera ray (o, d), and whether the ray hit a surface
+/// (Mitsuba's `valid_ray`: the film's alpha).
 pub fn sample(
     scene: &Scene,
     o: Vec3A,
@@ -31,7 +32,7 @@ pub fn sample(
     rng: &mut Pcg32,
     emitter_samples: u32,
     bsdf_samples: u32,
-) -> Vec3 {
+) -> (Vec3, bool) {
     let total = (emitter_samples + bsdf_samples) as f32;
     let (frac_lum, frac_bsdf) = (emitter_samples as f32 / total, bsdf_samples as f32 / total);
     let si = scene.intersect(o, d, tmax);
@@ -46,7 +47,9 @@ pub fn sample(
         let n_end = si.map_or(Vec3A::ZERO, |h| h.sh_frame.n);
         result += scene.emitters[ei as usize].eval(n_end, d);
     }
-    let Some(h) = si else { return result };
+    let Some(h) = si else {
+        return (result, false);
+    };
     let bsdf = &scene.bsdfs[scene.shapes[h.shape as usize].bsdf as usize];
     let wi = h.sh_frame.to_local(-d);
 
@@ -96,5 +99,5 @@ pub fn sample(
         let w = mis_weight(bs.pdf * frac_bsdf, em_pdf * frac_lum) / bsdf_samples as f32;
         result += bs.weight * e.eval(n_end, wo) * w;
     }
-    result
+    (result, true)
 }

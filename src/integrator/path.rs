@@ -21,11 +21,12 @@ struct PrevVertex {
     delta: bool,
 }
 
-/// One radiance sample along the camera ray (o, d).
-pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> Vec3 {
+/// One radiance sample along the camera ray (o, d), and whether it is valid (Mitsuba's
+/// `valid_ray`: the film's alpha).
+pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> (Vec3, bool) {
     let s = &scene.integrator;
     if s.max_depth == 0 {
-        return Vec3::ZERO;
+        return (Vec3::ZERO, false);
     }
     let mut result = Vec3::ZERO;
     let mut throughput = Vec3::ONE;
@@ -131,8 +132,8 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         si = scene.intersect(o2, ray_d, f32::MAX);
     }
     if valid_ray {
-        result
+        (result, true)
     } else {
-        Vec3::ZERO
+        (Vec3::ZERO, false)
     }
 }

@@ -92,9 +92,12 @@ fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
 }
 
 /// The radiance image and, when asked for, the derivative image (same layout, signed).
+/// With a luminance film the image holds Y in all three channels; with an alpha film
+/// `alpha` holds it (in all three channels too).
 pub struct Rendered {
     pub image: Image,
     pub gradient: Option<Image>,
+    pub alpha: Option<Image>,
     pub stats: RenderStats,
 }
 
@@ -121,15 +124,19 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     let (ox, oy) = film.crop_offset;
     let border = film.rfilter.border();
     let spp = shot.spp;
+    let with_alpha = film.pixel_format.has_alpha();
     let sample = |o, d, tmax, rng: &mut Pcg32| match scene.integrator.kind {
-        IntegratorKind::Path => (path::sample(scene, o, d, tmax, rng), Vec3::ZERO),
+        IntegratorKind::Path => {
+            let (l, valid) = path::sample(scene, o, d, tmax, rng);
+            (l, Vec3::ZERO, valid)
+        }
         IntegratorKind::Direct {
             emitter_samples,
             bsdf_samples,
-        } => (
-            direct::sample(scene, o, d, tmax, rng, emitter_samples, bsdf_samples),
-            Vec3::ZERO,
-        ),
+        } => {
+            let (l, valid) = direct::sample(scene, o, d, tmax, rng, emitter_samples, bsdf_samples);
+            (l, Vec3::ZERO, valid)
+        }
         IntegratorKind::Volpath => volpath::sample(scene, &settings, o, d, tmax, rng),
     };
 
@@ -159,12 +166,14 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
             .as_ref()
             .is_some_and(|c| c.load(Ordering::Relaxed))
     };
-    let new_blocks = || -> Vec<(ImageBlock, Option<ImageBlock>)> {
+    // Per tile: the radiance, the derivative (if asked for) and the alpha (if the film
+    // has it), each splatted with the same filter weight.
+    let new_blocks = || -> Vec<(ImageBlock, Option<ImageBlock>, Option<ImageBlock>)> {
         tiles
             .iter()
             .map(|&(tx, ty, tw, th)| {
                 let b = || ImageBlock::new((tx as i64, ty as i64), (tw, th), border);
-                (b(), with_gradient.then(b))
+                (b(), with_gradient.then(b), with_alpha.then(b))
             })
             .collect()
     };
@@ -180,7 +189,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         let invalid: Vec<Option<u64>> = tiles
             .par_iter()
             .zip(pass.par_iter_mut())
-            .map(|(&(tx, ty, tw, th), (block, d_block))| {
+            .map(|(&(tx, ty, tw, th), (block, d_block, a_block))| {
                 let mut invalid = 0u64;
                 for y in ty..ty + th {
                     if cancelled() {
@@ -197,7 +206,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                             let u = positions.get(si);
                             let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
                             let ray = shot.camera.sample_ray(pos);
-                            let (mut l, mut dl) = sample(ray.o, ray.d, ray.tmax, &mut rng);
+                            let (mut l, mut dl, valid) = sample(ray.o, ray.d, ray.tmax, &mut rng);
                             if !l.is_finite() || !dl.is_finite() {
                                 invalid += 1;
                                 l = Vec3::ZERO;
@@ -207,6 +216,9 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                             block.put(p, l, &film.rfilter);
                             if let Some(db) = d_block {
                                 db.put(p, dl, &film.rfilter);
+                            }
+                            if let Some(ab) = a_block {
+                                ab.put(p, Vec3::splat(valid as u8 as f32), &film.rfilter);
                             }
                         }
                     }
@@ -219,10 +231,12 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
             break;
         };
         invalid_samples += invalid;
-        for ((b, db), (pb, pdb)) in acc.iter_mut().zip(&pass) {
+        for ((b, db, ab), (pb, pdb, pab)) in acc.iter_mut().zip(&pass) {
             pb.accumulate_into(b);
-            if let (Some(pdb), Some(db)) = (pdb, db) {
-                pdb.accumulate_into(db);
+            for (part, whole) in [(pdb, db), (pab, ab)] {
+                if let (Some(part), Some(whole)) = (part, whole) {
+                    part.accumulate_into(whole);
+                }
             }
         }
         spp_done = s1;
@@ -232,12 +246,16 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     }
     bar.finish_and_clear();
 
-    let mut full = ImageBlock::new((0, 0), (cw, ch), border);
-    let mut d_full = with_gradient.then(|| ImageBlock::new((0, 0), (cw, ch), border));
-    for (b, db) in &acc {
+    let whole = || ImageBlock::new((0, 0), (cw, ch), border);
+    let mut full = whole();
+    let mut d_full = with_gradient.then(whole);
+    let mut a_full = with_alpha.then(whole);
+    for (b, db, ab) in &acc {
         b.accumulate_into(&mut full);
-        if let (Some(db), Some(d_full)) = (db, &mut d_full) {
-            db.accumulate_into(d_full);
+        for (part, whole) in [(db, &mut d_full), (ab, &mut a_full)] {
+            if let (Some(part), Some(whole)) = (part, whole) {
+                part.accumulate_into(whole);
+            }
         }
     }
     let seconds = start.elapsed().as_secs_f64();
@@ -246,9 +264,17 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         height: ch,
         pixels: b.develop(),
     };
+    let mut image = as_image(&full);
+    if film.pixel_format.is_luminance() {
+        // Mitsuba's develop: Y of the developed RGB.
+        for p in &mut image.pixels {
+            *p = [crate::scene::film::luminance(*p); 3];
+        }
+    }
     Rendered {
-        image: as_image(&full),
+        image,
         gradient: d_full.as_ref().map(as_image),
+        alpha: a_full.as_ref().map(as_image),
         stats: RenderStats {
             spp: spp_done,
             samples: (cw * ch) as u64 * spp_done as u64,

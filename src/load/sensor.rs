@@ -9,7 +9,7 @@ use super::{to_mat4, unsupported, Builder};
 use crate::error::Result;
 use crate::geometry::Bounds;
 use crate::scene::camera::{fov_x_degrees, PerspectiveCamera};
-use crate::scene::film::{Film, Rfilter};
+use crate::scene::film::{Film, PixelFormat, Rfilter};
 use crate::xml::description::{ObjId, ObjectKind};
 
 impl Builder<'_> {
@@ -174,12 +174,14 @@ impl Builder<'_> {
             ))
             .with_hint("render a smaller film, or a crop window of it"));
         }
-        let pixel_format = p.string("pixel_format", "rgb")?.to_ascii_lowercase();
-        if pixel_format != "rgb" {
-            return Err(p.error(format!(
-                "pixel_format \"{pixel_format}\" is not supported: mediareg writes RGB (use \"rgb\")"
-            )));
-        }
+        let name = p.string("pixel_format", "rgb")?.to_ascii_lowercase();
+        let pixel_format = PixelFormat::ALL
+            .into_iter()
+            .find(|f| f.name() == name)
+            .ok_or_else(|| {
+                p.error(format!("pixel_format \"{name}\" is not supported"))
+                    .with_hint("use rgb, rgba, luminance or luminance_alpha (Mitsuba's xyz and xyza are not written by mediareg)")
+            })?;
         // Storage precision only: mediareg always writes float32.
         let component_format = p
             .string("component_format", "float16")?
@@ -209,6 +211,7 @@ impl Builder<'_> {
             crop_offset: (cx as usize, cy as usize),
             crop_size: (cw as usize, ch as usize),
             rfilter,
+            pixel_format,
         })
     }
 
@@ -237,5 +240,6 @@ fn default_film() -> Film {
         crop_offset: (0, 0),
         crop_size: (768, 576),
         rfilter: Rfilter::Gaussian { stddev: 0.5 },
+        pixel_format: PixelFormat::Rgb,
     }
 }

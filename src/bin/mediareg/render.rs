@@ -91,7 +91,7 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
     }
     // The spp reached (less than asked for when interrupted), in the EXR header.
     let spp = Some(u64::from(stats.spp));
-    image::write_render_exr(&out_exr, img, spp)?;
+    write_film_exr(&out_exr, &rendered, scene_data.shot.film.pixel_format, spp)?;
     let mut written = vec![out_exr.display().to_string()];
     if let Some(g) = &rendered.gradient {
         let out_grad = sibling(&out_exr, "_dalbedo");
@@ -158,4 +158,32 @@ fn write_ray_log(
     std::fs::write(&json, serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("writing {}", json.display()))?;
     Ok(())
+}
+
+/// Writes the render as the film's `pixel_format` asks: R, G, B; Y (Mitsuba's
+/// luminance, which the render already holds in every channel); and alpha A where asked.
+fn write_film_exr(
+    out: &std::path::Path,
+    rendered: &integrator::Rendered,
+    format: mediareg::scene::film::PixelFormat,
+    spp: Option<u64>,
+) -> anyhow::Result<()> {
+    let img = &rendered.image;
+    if format == mediareg::scene::film::PixelFormat::Rgb {
+        return image::write_render_exr(out, img, spp);
+    }
+    let channel = |c: usize, of: &image::Image| of.pixels.iter().map(|p| p[c]).collect();
+    let mut channels: Vec<(&str, Vec<f32>)> = if format.is_luminance() {
+        vec![("Y", channel(0, img))]
+    } else {
+        vec![
+            ("R", channel(0, img)),
+            ("G", channel(1, img)),
+            ("B", channel(2, img)),
+        ]
+    };
+    if let Some(a) = &rendered.alpha {
+        channels.push(("A", channel(0, a)));
+    }
+    image::write_channels_exr(out, (img.width, img.height), channels, spp)
 }

@@ -286,7 +286,7 @@ fn an_emitter_seen_through_a_medium_is_counted_in_expectation() {
                 albedo: &albedo,
                 gradient: Gradient::None,
             };
-            let (l, _) = sample(&scene, &settings, o, d, f32::INFINITY, &mut rng);
+            let (l, _, _) = sample(&scene, &settings, o, d, f32::INFINITY, &mut rng);
             assert!(
                 (l - want).abs().max_element() <= 1e-4 * want.max_element(),
                 "direction {d}, sample {k}: {l} vs {want}"
