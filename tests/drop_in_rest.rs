@@ -542,11 +542,15 @@ fn film_render(
 }
 
 /// The films scene's alpha (luminance_alpha, rendered in `CHUNKS` chunks from `seed`
-/// with `params`) against Mitsuba 3's (`reference/films_alpha`, made with --alpha).
-fn check_alpha(params: &[(&str, &str)], seed: u64) -> mediareg::image::stats::Comparison {
+/// with `params`) against Mitsuba 3's (`reference/NAME`, made with --alpha).
+fn check_alpha(
+    name: &str,
+    params: &[(&str, &str)],
+    seed: u64,
+) -> mediareg::image::stats::Comparison {
     use mediareg::image::stats::{compare, Estimate};
     let scene = root().join("mitsuba_scenes/films.xml");
-    let r = common::reference("films_alpha", &scene);
+    let r = common::reference(name, &scene);
     let chunks: Vec<Vec<[f32; 3]>> = (0..CHUNKS as u64)
         .map(|i| film_render(params, SPP, seed + i).1.expect("an alpha film"))
         .collect();
@@ -559,7 +563,7 @@ fn check_alpha(params: &[(&str, &str)], seed: u64) -> mediareg::image::stats::Co
         common::ALPHA,
         common::FALSE_ALARM,
     );
-    println!("films_alpha {params:?}: {c}");
+    println!("{name} {params:?}: {c}");
     c
 }
 
@@ -651,18 +655,31 @@ fn luminance_comparison_detects_albedo_off() {
     assert!(!c.passed, "albedo 0.78 for 0.8 went unnoticed: {c}");
 }
 
-/// The alpha (luminance_alpha, and rgba) against Mitsuba 3's.
+/// The alpha (luminance_alpha, and rgba) against Mitsuba 3's, with volpath and with
+/// path (`films_path_alpha`: the fog ignored).
 #[test]
 fn alpha_matches_mitsuba() {
-    let c = check_alpha(&[], 83);
+    let c = check_alpha("films_alpha", &[], 83);
     assert!(c.passed, "{c}");
-    let c = check_alpha(&[("pixel_format", "rgba")], 183);
+    let c = check_alpha("films_alpha", &[("pixel_format", "rgba")], 183);
     assert!(c.passed, "rgba: {c}");
+    let c = check_alpha("films_path_alpha", &[("integrator", "path")], 283);
+    assert!(c.passed, "path: {c}");
 }
 
-/// The same comparison fails when the fog's sigma_t is 5% off.
+/// The same comparisons fail when the fog's sigma_t is 5% off (volpath) or the
+/// sphere's radius 2% off (path).
 #[test]
-fn alpha_comparison_detects_sigma_t_off() {
-    let c = check_alpha(&[("sigma_t", "1.575")], 84);
+fn alpha_comparison_detects_sigma_t_and_radius_off() {
+    let c = check_alpha("films_alpha", &[("sigma_t", "1.575")], 84);
     assert!(!c.passed, "sigma_t 5% off went unnoticed in the alpha: {c}");
+    let c = check_alpha(
+        "films_path_alpha",
+        &[("integrator", "path"), ("radius", "0.49")],
+        284,
+    );
+    assert!(
+        !c.passed,
+        "the radius 2% off went unnoticed in path's alpha: {c}"
+    );
 }
