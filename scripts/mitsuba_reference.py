@@ -18,6 +18,9 @@ mean and variance of all chunks, from the stored mean and variance: Chan et al.'
 parallel update of the sum of squared deviations). The merged files are written after
 every chunk, so an interrupted run keeps what it rendered (run it again to go on).
 
+A film with pixel_format luminance or luminance_alpha is stored with its Y in all three
+channels; with --alpha, the film's alpha channel is (NAME_alpha).
+
 With --crop X,Y,W,H only that window of the film is rendered (the JSON records it, and
 the tests render the same window).
 
@@ -140,10 +143,26 @@ def load_scenes(mi, scene, params, derivative=None, step=0.01, crop=None):
     return scenes
 
 
-def render_chunk(mi, scenes, spp, seed):
-    """One chunk: the weighted sum of the scenes' renders at `spp` with `seed`, float64 RGB."""
+def film_channels(img, alpha=False):
+    """The film's colour as RGB (a luminance film's Y in all three channels), or with
+    `alpha` its alpha channel (rgba, luminance_alpha) in all three."""
     import numpy as np
-    return sum(w * np.array(mi.render(sc, spp=spp, seed=seed), dtype=np.float64)[:, :, :3]
+    c = img.shape[2]
+    if alpha:
+        if c not in (2, 4):
+            sys.exit("--alpha: the film has no alpha channel (pixel_format rgba or luminance_alpha)")
+        return np.repeat(img[:, :, c - 1:c], 3, axis=2)
+    if c <= 2:
+        return np.repeat(img[:, :, :1], 3, axis=2)
+    return img[:, :, :3]
+
+
+def render_chunk(mi, scenes, spp, seed, alpha=False):
+    """One chunk: the weighted sum of the scenes' renders at `spp` with `seed`, float64 RGB
+    (see film_channels)."""
+    import numpy as np
+    return sum(w * film_channels(np.array(mi.render(sc, spp=spp, seed=seed), dtype=np.float64),
+                                 alpha)
                for w, sc in scenes)
 
 
@@ -189,6 +208,9 @@ def main():
     ap.add_argument("--step", type=float, default=0.01, help="finite-difference step H for --derivative")
     ap.add_argument("--extend", action="store_true",
                     help="add --chunks chunks to the existing reference NAME (its spp per chunk, later seeds)")
+    ap.add_argument("--alpha", action="store_true",
+                    help="the film's alpha channel (pixel_format rgba or luminance_alpha) as the "
+                         "image, in all three channels; output name: the scene's stem + _alpha")
     ap.add_argument("--crop", default=None, metavar="X,Y,W,H",
                     help="render only this window of the film (as mediareg render --crop)")
     args = ap.parse_args()
@@ -219,6 +241,8 @@ def main():
     name = args.name or os.path.splitext(os.path.basename(args.scene))[0]
     if args.derivative and not args.name:
         name += "_d" + args.derivative
+    if args.alpha and not args.name:
+        name += "_alpha"
     os.makedirs(args.out, exist_ok=True)
     out = os.path.join(args.out, name)
     hashes = {k: sha256(v) for k, v in sorted(files.items())}
@@ -252,7 +276,7 @@ def main():
     t0 = time.time()
     for i in range(args.chunks):
         seed = first_seed + i
-        img = render_chunk(mi, scenes, spp_chunk, seed)
+        img = render_chunk(mi, scenes, spp_chunk, seed, args.alpha)
         # Welford's update: exact pooling, one chunk at a time.
         n += 1
         if mean is None:

@@ -65,6 +65,7 @@ fn sphere_under_sky() -> SceneParts {
                 crop_offset: (0, 0),
                 crop_size: (SIZE, SIZE),
                 rfilter: Rfilter::Box,
+                pixel_format: Default::default(),
             },
             spp: 4,
             seed: 1,

@@ -27,7 +27,7 @@ pub struct TriangleMesh {
 }
 
 /// Mesh data as read from a file, in object space.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct RawMesh {
     pub positions: Vec<Vec3A>,
     pub normals: Option<Vec<Vec3A>>,

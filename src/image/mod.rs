@@ -95,6 +95,82 @@ pub fn write_render_exr(path: &Path, img: &Image, spp: Option<u64>) -> Result<()
     }
 }
 
+/// Writes named float32 channels of a `width` × `height` image (e.g. `Y`, or `Y` and `A`,
+/// or `R`, `G`, `B`, `A`: a film whose pixel format is not RGB), with the spp as
+/// [`write_render_exr`] writes it.
+pub fn write_channels_exr(
+    path: &Path,
+    (width, height): (usize, usize),
+    channels: Vec<(&str, Vec<f32>)>,
+    spp: Option<u64>,
+) -> Result<()> {
+    use exr::prelude::*;
+    if channels
+        .iter()
+        .any(|(_, v)| v.iter().any(|c| !c.is_finite()))
+    {
+        bail!(
+            "refusing to write {}: the image contains NaN or Inf",
+            path.display()
+        );
+    }
+    let list = channels
+        .into_iter()
+        .map(|(name, v)| AnyChannel::new(name, FlatSamples::F32(v)))
+        .collect();
+    let encoding = Encoding {
+        line_order: LineOrder::Increasing,
+        ..Encoding::FAST_LOSSLESS
+    };
+    let layer = Layer::new(
+        (width, height),
+        LayerAttributes::default(),
+        encoding,
+        AnyChannels::sort(list),
+    );
+    let mut image = exr::image::Image::from_layer(layer);
+    if let Some(n) = spp {
+        let n = AttributeValue::I32(i32::try_from(n).unwrap_or(i32::MAX));
+        image.attributes.other.insert(Text::from("spp"), n);
+    }
+    let tmp = temp_path(path);
+    if let Err(e) = image.write().to_file(&tmp) {
+        let _ = std::fs::remove_file(&tmp);
+        bail!("cannot write {}: {e}", path.display());
+    }
+    commit(&tmp, path)
+}
+
+/// An EXR's named channels, as f32.
+type Channels = Vec<(String, Vec<f32>)>;
+
+/// The width, height and named channels of an EXR's first layer.
+fn read_exr_channels(path: &Path) -> Result<(usize, usize, Channels)> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .with_context(|| format!("cannot read EXR {}", path.display()))?;
+    let layer = image.layer_data;
+    let channels = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect();
+    Ok((layer.size.width(), layer.size.height(), channels))
+}
+
+/// The alpha channel `A` of an EXR (a film with `rgba` or `luminance_alpha`), if it has one.
+pub fn read_exr_alpha(path: &Path) -> Result<Option<Vec<f32>>> {
+    let (_, _, channels) = read_exr_channels(path)?;
+    Ok(channels.into_iter().find(|(n, _)| n == "A").map(|(_, v)| v))
+}
+
 /// OUT.exr with `_suffix` added to its stem (OUT_dalbedo.exr, OUT_var.exr).
 pub fn sibling(out_exr: &Path, suffix: &str) -> PathBuf {
     let stem = out_exr.file_stem().unwrap_or_default().to_string_lossy();
@@ -117,9 +193,22 @@ pub fn read_exr_int_attribute(path: &Path, name: &str) -> Result<Option<i32>> {
     }))
 }
 
-/// Reads the RGB channels of an EXR (any of half/float/uint channels R, G, B).
+/// Reads the RGB channels of an EXR (any of half/float/uint channels R, G, B); a
+/// luminance EXR (a `Y` channel, as a `luminance` film writes) reads as grey, Y in all
+/// three.
 pub fn read_exr(path: &Path) -> Result<Image> {
     use exr::prelude::*;
+    if let Ok((width, height, channels)) = read_exr_channels(path) {
+        let has = |n: &str| channels.iter().any(|(c, _)| c == n);
+        if has("Y") && !has("R") {
+            let y = &channels.iter().find(|(c, _)| c == "Y").unwrap().1;
+            return Ok(self::Image {
+                width,
+                height,
+                pixels: y.iter().map(|&v| [v; 3]).collect(),
+            });
+        }
+    }
     let image = read_first_rgba_layer_from_file(
         path,
         |res, _| {

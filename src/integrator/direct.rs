@@ -48,12 +48,16 @@ pub fn sample(
         result += scene.emitters[ei as usize].eval(n_end, d);
     }
     let seen_emission = if si.is_some() { result } else { Vec3::ZERO };
-    let done = |radiance| PathSample {
+    // `valid`: the ray hit a surface (Mitsuba's `valid_ray`: the film's alpha).
+    let done = |radiance, valid| PathSample {
         radiance,
         second: Vec3::ZERO,
         seen_emission,
+        valid,
     };
-    let Some(h) = si else { return done(result) };
+    let Some(h) = si else {
+        return done(result, false);
+    };
     let bsdf = &scene.bsdfs[scene.shapes[h.shape as usize].bsdf as usize];
     let wi = h.sh_frame.to_local(-d);
 
@@ -103,5 +107,5 @@ pub fn sample(
         let w = mis_weight(bs.pdf * frac_bsdf, em_pdf * frac_lum) / bsdf_samples as f32;
         result += bs.weight * e.eval(n_end, wo) * w;
     }
-    done(result)
+    done(result, true)
 }

@@ -141,6 +141,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
             radiance: result,
             second: Vec3::ZERO,
             seen_emission,
+            valid: true,
         }
     } else {
         PathSample::default()

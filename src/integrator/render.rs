@@ -96,11 +96,14 @@ fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
 }
 
 /// The radiance image and, when asked for, the derivative image (same layout, signed)
-/// and the directly seen emission (a part of the radiance).
+/// and the directly seen emission (a part of the radiance). With a luminance film the
+/// image holds Y in all three channels; with an alpha film `alpha` holds it (in all
+/// three channels too).
 pub struct Rendered {
     pub image: Image,
     pub gradient: Option<Image>,
     pub seen_emission: Option<Image>,
+    pub alpha: Option<Image>,
     pub stats: RenderStats,
 }
 
@@ -110,21 +113,25 @@ struct Blocks {
     radiance: ImageBlock,
     second: Option<ImageBlock>,
     seen: Option<ImageBlock>,
+    alpha: Option<ImageBlock>,
+}
+
+/// Which optional images a render accumulates.
+#[derive(Clone, Copy)]
+struct Wanted {
+    second: bool,
+    seen: bool,
+    alpha: bool,
 }
 
 impl Blocks {
-    fn new(
-        offset: (i64, i64),
-        size: (usize, usize),
-        border: usize,
-        second: bool,
-        seen: bool,
-    ) -> Self {
+    fn new(offset: (i64, i64), size: (usize, usize), border: usize, wanted: Wanted) -> Self {
         let b = || ImageBlock::new(offset, size, border);
         Blocks {
             radiance: b(),
-            second: second.then(b),
-            seen: seen.then(b),
+            second: wanted.second.then(b),
+            seen: wanted.seen.then(b),
+            alpha: wanted.alpha.then(b),
         }
     }
 
@@ -136,6 +143,9 @@ impl Blocks {
         if let Some(b) = &mut self.seen {
             b.put(p, s.seen_emission, filter);
         }
+        if let Some(b) = &mut self.alpha {
+            b.put(p, Vec3::splat(s.valid as u8 as f32), filter);
+        }
     }
 
     fn accumulate_into(&self, target: &mut Blocks) {
@@ -143,6 +153,7 @@ impl Blocks {
         for (from, to) in [
             (&self.second, &mut target.second),
             (&self.seen, &mut target.seen),
+            (&self.alpha, &mut target.alpha),
         ] {
             if let (Some(f), Some(t)) = (from, to) {
                 f.accumulate_into(t);
@@ -158,6 +169,11 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     let show_progress = opts.show_progress;
     let gradient = opts.gradient;
     let with_gradient = gradient != volpath::Gradient::None;
+    let wanted = Wanted {
+        second: with_gradient,
+        seen: opts.seen_emission,
+        alpha: shot.film.pixel_format.has_alpha(),
+    };
     let albedo: Vec<Vec3> = match &opts.albedo {
         Some(a) => {
             assert_eq!(a.len(), scene.media.len(), "one albedo per medium");
@@ -214,7 +230,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
             .iter()
             .map(|&(tx, ty, tw, th)| {
                 let (o, size) = ((tx as i64, ty as i64), (tw, th));
-                Blocks::new(o, size, border, with_gradient, opts.seen_emission)
+                Blocks::new(o, size, border, wanted)
             })
             .collect()
     };
@@ -278,7 +294,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     }
     bar.finish_and_clear();
 
-    let mut full = Blocks::new((0, 0), (cw, ch), border, with_gradient, opts.seen_emission);
+    let mut full = Blocks::new((0, 0), (cw, ch), border, wanted);
     for b in &acc {
         b.accumulate_into(&mut full);
     }
@@ -288,10 +304,22 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         height: ch,
         pixels: b.develop(),
     };
+    let mut image = as_image(&full.radiance);
+    let mut seen_emission = full.seen.as_ref().map(as_image);
+    if film.pixel_format.is_luminance() {
+        // Mitsuba's develop: Y of the developed RGB (the seen emission's likewise, so
+        // that it stays a part of the image).
+        for img in std::iter::once(&mut image).chain(seen_emission.as_mut()) {
+            for p in &mut img.pixels {
+                *p = [crate::scene::film::luminance(*p); 3];
+            }
+        }
+    }
     Rendered {
-        image: as_image(&full.radiance),
+        image,
         gradient: full.second.as_ref().map(as_image),
-        seen_emission: full.seen.as_ref().map(as_image),
+        seen_emission,
+        alpha: full.alpha.as_ref().map(as_image),
         stats: RenderStats {
             spp: spp_done,
             samples: (cw * ch) as u64 * spp_done as u64,

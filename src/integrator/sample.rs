@@ -13,4 +13,7 @@ pub struct PathSample {
     pub radiance: Vec3,
     pub second: Vec3,
     pub seen_emission: Vec3,
+    /// Mitsuba's `valid_ray`, the film's alpha: the path met something (a visible
+    /// environment, a scattering in a medium, a surface it did not pass through).
+    pub valid: bool,
 }

@@ -374,6 +374,9 @@ pub fn sample(
     let n_emitters = scene.emitters.len();
     let mut result = Vec3::ZERO;
     let mut seen_emission = Vec3::ZERO;
+    // Mitsuba's `valid_ray`, the film's alpha: a visible environment, a scattering in a
+    // medium, or a surface whose BSDF sample is not a null one.
+    let mut valid = !s.hide_emitters && scene.environment.is_some();
     let mut d_result = Vec3::ZERO;
     // dβ/dα of the chosen medium's albedo (zero while no vertex in it).
     let mut d_beta = Vec3::ZERO;
@@ -563,6 +566,7 @@ pub fn sample(
                 if depth >= s.max_depth {
                     break;
                 }
+                valid = true;
                 let p = ray_o + ray_d * t;
                 // ---- Emitter sampling from the medium vertex ----
                 // p lies within the flight's clearance less t.
@@ -644,7 +648,10 @@ pub fn sample(
         // ---- BSDF sampling ----
         let s1 = rng.next_1d();
         let s2 = rng.next_2d();
-        let Some(bs) = bsdf.sample(wi, s1, s2, h.uv) else {
+        let sampled = bsdf.sample(wi, s1, s2, h.uv);
+        // A failed sample is not a null one (Mitsuba tests the sampled lobe's flags).
+        valid |= !sampled.is_some_and(|b| b.null);
+        let Some(bs) = sampled else {
             break;
         };
         let wo = h.sh_frame.to_world(bs.wo);
@@ -674,6 +681,7 @@ pub fn sample(
         radiance: result,
         second: d_result,
         seen_emission,
+        valid,
     }
 }
 

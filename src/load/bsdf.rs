@@ -5,6 +5,7 @@
 
 use glam::Vec3;
 
+use super::conductor_ior::{self, named_conductor};
 use super::props::Props;
 use super::spectrum::SpectrumUse;
 use super::{unsupported, Builder};
@@ -289,21 +290,37 @@ impl Builder<'_> {
 }
 
 /// A conductor's complex index η + iκ: `eta` and `k` (float, rgb or spectrum,
-/// unbounded), or `material` "none" (η 0, κ 1: an ideal mirror). Mitsuba's named
-/// materials (spectral tables) are refused.
+/// unbounded), `material` "none" (η 0, κ 1: an ideal mirror), or one of Mitsuba's named
+/// materials (its spectral tables, in RGB as its RGB variants make them).
 fn conductor_ior(p: &Props) -> Result<(Vec3, Vec3)> {
     let material = p.string("material", "none")?;
-    if !p.has("eta") && material != "none" {
-        return Err(p.error(format!(
-            "conductor material \"{material}\": the named materials (spectral IOR tables) are not supported yet; give eta and k (<float> or <rgb>), or material \"none\""
-        )));
+    if p.has("eta") || material == "none" {
+        if material != "none" {
+            return Err(p.error("give either eta and k, or material, not both"));
+        }
+        let eta = p.color_nonneg_as("eta", Vec3::ZERO, SpectrumUse::Unbounded)?;
+        let k = p.color_nonneg_as("k", Vec3::ONE, SpectrumUse::Unbounded)?;
+        return Ok((eta, k));
     }
-    if material != "none" {
+    if p.has("k") {
         return Err(p.error("give either eta and k, or material, not both"));
     }
-    let eta = p.color_nonneg_as("eta", Vec3::ZERO, SpectrumUse::Unbounded)?;
-    let k = p.color_nonneg_as("k", Vec3::ONE, SpectrumUse::Unbounded)?;
-    Ok((eta, k))
+    named_conductor(&material).ok_or_else(|| {
+        let loc = p
+            .get("material")
+            .map_or(p.obj.loc.clone(), |(_, l)| l.clone());
+        SceneError::at(
+            &loc,
+            format!(
+                "{}: unknown conductor material \"{material}\"",
+                p.obj.label()
+            ),
+        )
+        .with_hint(format!(
+            "give eta and k, or one of Mitsuba's materials (names are case-sensitive): none, {}",
+            conductor_ior::names().join(", ")
+        ))
+    })
 }
 
 /// Mitsuba's microfacet parameters: `distribution` ("beckmann" or "ggx"; Beckmann by
@@ -331,11 +348,11 @@ fn microfacet(p: &Props, anisotropic: bool) -> Result<Microfacet> {
             return Err(p.error("give either alpha or alpha_u and alpha_v, not both"));
         }
         (
-            p.float_in("alpha_u", 0.1, 0.0, 1e3)?,
-            p.float_in("alpha_v", 0.1, 0.0, 1e3)?,
+            roughness(p, "alpha_u", anisotropic)?,
+            roughness(p, "alpha_v", anisotropic)?,
         )
     } else {
-        let a = p.float_in("alpha", 0.1, 0.0, 1e3)?;
+        let a = roughness(p, "alpha", anisotropic)?;
         (a, a)
     };
     if !p.bool("sample_visible", true)? {
@@ -345,6 +362,31 @@ fn microfacet(p: &Props, anisotropic: bool) -> Result<Microfacet> {
         );
     }
     Ok(Microfacet::new(kind, au as f32, av as f32))
+}
+
+/// A roughness: `roughconductor` and `roughdielectric` read it as Mitsuba 3 does, as an
+/// unbounded texture's `eval_1` (a float, a constant `<spectrum>`, or an `<rgb>` or
+/// sampled spectrum's channel mean); `roughplastic` as a plain float (Mitsuba's
+/// `MicrofacetDistribution` reads `get<float>`, which refuses a spectrum).
+fn roughness(p: &Props, name: &str, texture: bool) -> Result<f64> {
+    let v = match (texture, p.get(name)) {
+        (true, Some((Value::Rgb(_) | Value::Spectrum(_) | Value::SampledSpectrum(_), _))) => {
+            let (c, _) = p.color_opt_as(name, SpectrumUse::Unbounded)?.unwrap();
+            ((c.x + c.y + c.z) / 3.0) as f64
+        }
+        _ => p.float(name, 0.1)?,
+    };
+    if !(0.0..=1e3).contains(&v) {
+        let loc = p.get(name).map_or(p.obj.loc.clone(), |(_, l)| l.clone());
+        return Err(SceneError::at(
+            &loc,
+            format!(
+                "{}: \"{name}\" = {v} is out of range [0, 1000]",
+                p.obj.label()
+            ),
+        ));
+    }
+    Ok(v)
 }
 
 /// int_ior / ext_ior (defaults `int_default` and "air"), which must differ, as Mitsuba's

@@ -7,7 +7,8 @@
 //! instance at load into copies of the group's shapes whose `to_world` is the instance's
 //! times the shape's own. The surfaces are the same: a point maps by `to_world`, normals by
 //! its inverse transpose, as Mitsuba's `Instance::compute_surface_interaction` maps them.
-//! Each copy costs memory and load time, which Mitsuba's shared group does not.
+//! Each copy costs memory, which Mitsuba's shared group does not; a mesh file is read
+//! once for all of them (the builder keeps what it read, `shape.rs`).
 //!
 //! Refused as Mitsuba refuses them: a shapegroup in a shapegroup, an instance in a
 //! shapegroup, an emitter on a shape in a shapegroup ("Instancing of emitters is not

@@ -6,12 +6,14 @@
 //! understand; [`Scene::new`] then prepares them for rendering.
 
 mod bsdf;
+pub mod conductor_ior;
 mod emitter;
 mod heterogeneous;
 mod instance;
 mod integrator;
 mod medium;
 pub mod props;
+pub mod sampler;
 mod sensor;
 mod shape;
 pub mod spectrum;
@@ -19,13 +21,14 @@ mod texture;
 mod volume;
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{DMat4, Mat4};
 
 use crate::bsdf::Bsdf;
 use crate::emitter::Emitter;
 use crate::error::{Result, SceneError};
+use crate::geometry::mesh::RawMesh;
 use crate::geometry::shape::Geometry;
 use crate::medium::HomogeneousMedium;
 use crate::scene::shot::Shot;
@@ -35,6 +38,7 @@ use crate::xml::LoadOptions;
 use props::Props;
 
 pub use emitter::UNIFORM_SPECTRUM_RGB;
+pub use shape::mesh_files_read;
 
 /// The objects translated so far, in `Scene`'s order, and the ids they were declared
 /// under (a `<ref>` names one); shared by the per-plugin files.
@@ -45,6 +49,8 @@ struct Builder<'a> {
     media: Vec<HomogeneousMedium>,
     medium_ids: HashMap<ObjId, u32>,
     geometries: Vec<Geometry>,
+    /// Mesh files read so far, by (plugin, path, shape_index): read once, cloned per use.
+    meshes: HashMap<(String, PathBuf, u32), RawMesh>,
     shapes: Vec<ShapeInfo>,
     emitters: Vec<Emitter>,
     environment: Option<u32>,
@@ -81,6 +87,7 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         media: Vec::new(),
         medium_ids: HashMap::new(),
         geometries: Vec::new(),
+        meshes: HashMap::new(),
         shapes: Vec::new(),
         emitters: Vec::new(),
         environment: None,
@@ -145,9 +152,9 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
             ))
             .with_hint("sensors are numbered from 0 in file order"));
     }
-    let (camera, camera_medium, mut film, spp, seed) = if sensors.is_empty() {
-        let (camera, film, spp, seed) = b.default_sensor();
-        (camera, None, film, spp, seed)
+    let (camera, camera_medium, mut film, sampler) = if sensors.is_empty() {
+        let (camera, film, sampler) = b.default_sensor();
+        (camera, None, film, sampler)
     } else {
         // Mitsuba builds every sensor: check them all, render the chosen one.
         let mut chosen = None;
@@ -166,6 +173,20 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
             ));
         }
         chosen.expect("the chosen sensor is in range")
+    };
+    b.warnings.extend(sampler.note.clone());
+    let spp = match overrides.spp {
+        Some(n) => {
+            let rounded = sampler.kind.sample_count(n);
+            if rounded != n {
+                b.warnings.push(format!(
+                    "--spp {n}: sampler \"{}\" renders {rounded} samples per pixel, as Mitsuba 3 rounds it",
+                    sampler.kind.name()
+                ));
+            }
+            rounded
+        }
+        None => sampler.spp,
     };
     if let Some([x, y, w, h]) = overrides.crop {
         if w == 0 || h == 0 || x + w > film.width || y + h > film.height {
@@ -199,8 +220,8 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         shot: Shot {
             camera,
             film,
-            spp: overrides.spp.unwrap_or(spp),
-            seed: overrides.seed.unwrap_or(seed),
+            spp,
+            seed: overrides.seed.unwrap_or(sampler.seed),
         },
         integrator,
         warnings: b.warnings,

@@ -1,21 +1,22 @@
-//! The sensor and what it holds: Mitsuba's `perspective` sensor, `hdrfilm` film,
-//! reconstruction filters (`box`, `tent`, `gaussian`) and the `independent` sampler.
+//! The sensor and what it holds: Mitsuba's `perspective` sensor, `hdrfilm` film and
+//! reconstruction filters (`box`, `tent`, `gaussian`); its sampler is in `sampler`.
 
 use glam::{Mat4, Vec2, Vec3};
 
 use super::props::Props;
+use super::sampler::SamplerSpec;
 use super::{to_mat4, unsupported, Builder};
 use crate::error::Result;
 use crate::geometry::Bounds;
 use crate::scene::camera::{fov_x_degrees, PerspectiveCamera};
-use crate::scene::film::{Film, Rfilter};
+use crate::scene::film::{Film, PixelFormat, Rfilter};
 use crate::xml::description::{ObjId, ObjectKind};
 
 impl Builder<'_> {
     pub(super) fn sensor(
         &mut self,
         id: ObjId,
-    ) -> Result<(PerspectiveCamera, Option<u32>, Film, u32, u64)> {
+    ) -> Result<(PerspectiveCamera, Option<u32>, Film, SamplerSpec)> {
         let p = Props::new(self.desc, id);
         if p.obj.plugin != "perspective" {
             return Err(unsupported(&p, "sensor", "perspective"));
@@ -24,9 +25,9 @@ impl Builder<'_> {
             Some(c) => self.film(c.object)?,
             None => default_film(),
         };
-        let (spp, seed) = match p.child_of(ObjectKind::Sampler)? {
+        let sampler = match p.child_of(ObjectKind::Sampler)? {
             Some(c) => self.sampler(c.object)?,
-            None => (4, 0),
+            None => SamplerSpec::DEFAULT,
         };
         let aspect = film.width as f64 / film.height as f64;
         let fov_x = if p.has("fov") {
@@ -86,7 +87,7 @@ impl Builder<'_> {
             principal_point_offset: ppo,
             film_size: Vec2::new(film.width as f32, film.height as f32),
         };
-        Ok((camera, medium, film, spp, seed))
+        Ok((camera, medium, film, sampler))
     }
 
     /// A scene without a sensor: the perspective camera Mitsuba 2 (and Mitsuba 3 before
@@ -97,7 +98,7 @@ impl Builder<'_> {
     /// (768 × 576, gaussian) and independent sampler (4 spp). Without shapes, at the
     /// origin with the default clip planes. Computed in single precision, as Mitsuba's.
     /// Mitsuba 3.0 and later refuse such a file ("No sensor specified").
-    pub(super) fn default_sensor(&mut self) -> (PerspectiveCamera, Film, u32, u64) {
+    pub(super) fn default_sensor(&mut self) -> (PerspectiveCamera, Film, SamplerSpec) {
         let film = default_film();
         let bounds = self
             .geometries
@@ -136,7 +137,7 @@ impl Builder<'_> {
             principal_point_offset: Vec2::ZERO,
             film_size: Vec2::new(film.width as f32, film.height as f32),
         };
-        (camera, film, 4, 0)
+        (camera, film, SamplerSpec::DEFAULT)
     }
 
     pub(super) fn film(&self, id: ObjId) -> Result<Film> {
@@ -173,12 +174,14 @@ impl Builder<'_> {
             ))
             .with_hint("render a smaller film, or a crop window of it"));
         }
-        let pixel_format = p.string("pixel_format", "rgb")?.to_ascii_lowercase();
-        if pixel_format != "rgb" {
-            return Err(p.error(format!(
-                "pixel_format \"{pixel_format}\" is not supported: mediareg writes RGB (use \"rgb\")"
-            )));
-        }
+        let name = p.string("pixel_format", "rgb")?.to_ascii_lowercase();
+        let pixel_format = PixelFormat::ALL
+            .into_iter()
+            .find(|f| f.name() == name)
+            .ok_or_else(|| {
+                p.error(format!("pixel_format \"{name}\" is not supported"))
+                    .with_hint("use rgb, rgba, luminance or luminance_alpha (Mitsuba's xyz and xyza are not written by mediareg)")
+            })?;
         // Storage precision only: mediareg always writes float32.
         let component_format = p
             .string("component_format", "float16")?
@@ -208,6 +211,7 @@ impl Builder<'_> {
             crop_offset: (cx as usize, cy as usize),
             crop_size: (cw as usize, ch as usize),
             rfilter,
+            pixel_format,
         })
     }
 
@@ -226,23 +230,6 @@ impl Builder<'_> {
         p.finish("radius (tent), stddev (gaussian)")?;
         Ok(f)
     }
-
-    pub(super) fn sampler(&self, id: ObjId) -> Result<(u32, u64)> {
-        let p = Props::new(self.desc, id);
-        if p.obj.plugin != "independent" {
-            return Err(unsupported(&p, "sampler", "independent"));
-        }
-        let spp = p.int("sample_count", 4)?;
-        if !(1..=1 << 24).contains(&spp) {
-            return Err(p.error(format!("sample_count = {spp}: must be in [1, {}]", 1 << 24)));
-        }
-        let seed = p.int("seed", 0)?;
-        if seed < 0 {
-            return Err(p.error(format!("seed = {seed}: must be ≥ 0")));
-        }
-        p.finish("sample_count, seed")?;
-        Ok((spp as u32, seed as u64))
-    }
 }
 
 /// Mitsuba's default `hdrfilm`: 768 × 576 with a gaussian filter.
@@ -253,5 +240,6 @@ fn default_film() -> Film {
         crop_offset: (0, 0),
         crop_size: (768, 576),
         rfilter: Rfilter::Gaussian { stddev: 0.5 },
+        pixel_format: PixelFormat::Rgb,
     }
 }

@@ -18,6 +18,16 @@ use crate::texture::Texture;
 use crate::xml::description::{ObjId, ObjectKind};
 use crate::xml::resolve::resolve_path;
 
+thread_local! {
+    static MESH_FILES_READ: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// How many mesh files (ply, obj, serialized) this thread has read from disk while
+/// loading scenes: tests check that instances share one read.
+pub fn mesh_files_read() -> usize {
+    MESH_FILES_READ.with(|n| n.get())
+}
+
 /// The largest |coordinate| a shape may reach.
 const MAX_COORDINATE: f32 = 1e12;
 
@@ -44,19 +54,32 @@ impl Builder<'_> {
                         ))
                 })?;
                 let face_normals = p.bool("face_normals", false)?;
-                let mut raw = match p.obj.plugin.as_str() {
-                    "ply" => read_ply(&path),
-                    "obj" => read_obj(&path),
-                    _ => {
+                let index = match p.obj.plugin.as_str() {
+                    "serialized" => {
                         let index = p.int("shape_index", 0)?;
-                        let index = u32::try_from(index).map_err(|_| {
+                        u32::try_from(index).map_err(|_| {
                             p.error(format!("shape_index = {index}: must be 0 or more"))
-                        })?;
-                        read_serialized(&path, index)
+                        })?
                     }
-                }
-                // Name the scene line of the <shape> too, not only the mesh file.
-                .map_err(|e| SceneError::at(p.loc(), format!("{}: {e}", p.obj.label())))?;
+                    _ => 0,
+                };
+                // Each file is read once, however many instances (or shapes) use it.
+                let key = (p.obj.plugin.clone(), path.clone(), index);
+                let mut raw = match self.meshes.get(&key) {
+                    Some(raw) => raw.clone(),
+                    None => {
+                        MESH_FILES_READ.with(|n| n.set(n.get() + 1));
+                        let raw = match p.obj.plugin.as_str() {
+                            "ply" => read_ply(&path),
+                            "obj" => read_obj(&path),
+                            _ => read_serialized(&path, index),
+                        }
+                        // Name the scene line of the <shape> too, not only the mesh file.
+                        .map_err(|e| SceneError::at(p.loc(), format!("{}: {e}", p.obj.label())))?;
+                        self.meshes.insert(key, raw.clone());
+                        raw
+                    }
+                };
                 // Mitsuba flips an OBJ's v (v ↦ 1 − v) unless told not to.
                 if p.obj.plugin == "obj" && p.bool("flip_tex_coords", true)? {
                     if let Some(uvs) = &mut raw.uvs {

@@ -55,6 +55,48 @@ impl Rfilter {
     }
 }
 
+/// What `hdrfilm` writes (its `pixel_format`): the colour as RGB or as luminance, with or
+/// without alpha (Mitsuba's `valid_ray`: 1 where a sample's path met something).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PixelFormat {
+    #[default]
+    Rgb,
+    Rgba,
+    Luminance,
+    LuminanceAlpha,
+}
+
+impl PixelFormat {
+    pub const ALL: [PixelFormat; 4] = [
+        PixelFormat::Rgb,
+        PixelFormat::Rgba,
+        PixelFormat::Luminance,
+        PixelFormat::LuminanceAlpha,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PixelFormat::Rgb => "rgb",
+            PixelFormat::Rgba => "rgba",
+            PixelFormat::Luminance => "luminance",
+            PixelFormat::LuminanceAlpha => "luminance_alpha",
+        }
+    }
+
+    pub fn has_alpha(self) -> bool {
+        matches!(self, PixelFormat::Rgba | PixelFormat::LuminanceAlpha)
+    }
+
+    pub fn is_luminance(self) -> bool {
+        matches!(self, PixelFormat::Luminance | PixelFormat::LuminanceAlpha)
+    }
+}
+
+/// Mitsuba's `luminance`: Y of a linear sRGB colour.
+pub fn luminance(c: [f32; 3]) -> f32 {
+    c[0] * 0.212671 + c[1] * 0.715160 + c[2] * 0.072169
+}
+
 #[derive(Clone, Debug)]
 pub struct Film {
     /// Full film size.
@@ -64,6 +106,7 @@ pub struct Film {
     pub crop_offset: (usize, usize),
     pub crop_size: (usize, usize),
     pub rfilter: Rfilter,
+    pub pixel_format: PixelFormat,
 }
 
 /// A rectangle of accumulated samples (Σ w·L and Σ w per pixel), with a border wide

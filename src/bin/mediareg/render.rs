@@ -162,14 +162,22 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         }
     };
     let shown = denoised.as_ref().unwrap_or(img);
+    let format = scene_data.shot.film.pixel_format;
+    let alpha = rendered.alpha.as_ref();
     if let Some(d) = &denoised {
-        image::write_render_exr(&out_exr, d, spp)?;
+        let mut d = d.clone();
+        if format.is_luminance() {
+            for p in &mut d.pixels {
+                *p = [mediareg::scene::film::luminance(*p); 3];
+            }
+        }
+        write_film_exr(&out_exr, &d, alpha, format, spp)?;
         written.push(out_exr.display().to_string());
         let noisy = sibling(&out_exr, "_noisy");
-        image::write_render_exr(&noisy, img, spp)?;
+        write_film_exr(&noisy, img, alpha, format, spp)?;
         written.push(noisy.display().to_string());
     } else {
-        image::write_render_exr(&out_exr, img, spp)?;
+        write_film_exr(&out_exr, img, alpha, format, spp)?;
         written.push(out_exr.display().to_string());
     }
     if let Some(a) = &aux {
@@ -244,4 +252,32 @@ fn write_ray_log(
     std::fs::write(&json, serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("writing {}", json.display()))?;
     Ok(())
+}
+
+/// Writes `img` as the film's `pixel_format` asks: R, G, B; Y (Mitsuba's luminance,
+/// which the image already holds in every channel); and the alpha A where asked.
+fn write_film_exr(
+    out: &Path,
+    img: &image::Image,
+    alpha: Option<&image::Image>,
+    format: mediareg::scene::film::PixelFormat,
+    spp: Option<u64>,
+) -> Result<()> {
+    if format == mediareg::scene::film::PixelFormat::Rgb {
+        return image::write_render_exr(out, img, spp);
+    }
+    let channel = |c: usize, of: &image::Image| of.pixels.iter().map(|p| p[c]).collect();
+    let mut channels: Vec<(&str, Vec<f32>)> = if format.is_luminance() {
+        vec![("Y", channel(0, img))]
+    } else {
+        vec![
+            ("R", channel(0, img)),
+            ("G", channel(1, img)),
+            ("B", channel(2, img)),
+        ]
+    };
+    if let Some(a) = alpha {
+        channels.push(("A", channel(0, a)));
+    }
+    image::write_channels_exr(out, (img.width, img.height), channels, spp)
 }
