@@ -470,7 +470,7 @@ mod tests {
         let (left, bias2) = spatial_terms(&difference, samples, chunks, &filter);
         for c in 0..3 {
             let (mut want_left, mut power, mut var, mut seen) = (0.0, 0.0, 0.0, 0.0);
-            for j in 0..n {
+            for (j, row) in f.iter().enumerate() {
                 let v = difference.var_mean[j][c] as f64;
                 let col2: f64 = (0..n).map(|i| f[i][j] * f[i][j]).sum();
                 let minus_i2: f64 = (0..n)
@@ -479,7 +479,7 @@ mod tests {
                 want_left += col2 * v * samples;
                 power += minus_i2 * v;
                 var += 2.0 * (minus_i2 * v).powi(2) * (1.0 + 1.0 / (chunks as f64 - 1.0));
-                let fd: f64 = (0..n).map(|k| f[j][k] * difference.mean[k][c] as f64).sum();
+                let fd: f64 = (0..n).map(|k| row[k] * difference.mean[k][c] as f64).sum();
                 seen += (fd - difference.mean[j][c] as f64).powi(2);
             }
             let want_bias = (seen - power + BIAS_Z * var.sqrt()).max(0.0);
