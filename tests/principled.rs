@@ -25,7 +25,8 @@ use mediareg::texture::Texture;
 const CHUNKS: usize = 8;
 const SPP: u32 = 512;
 
-/// mitsuba_scenes/principled.xml with `path` (reference `principled`, 8192 spp).
+/// mitsuba_scenes/principled.xml with `path` (reference `principled`, 65,536 spp, as
+/// are `principled_volpath` and `principled_set2`).
 fn check_path(params: &[(&str, &str)], seed: u64) -> Comparison {
     check_against_reference("principled", "principled", params, CHUNKS, SPP, seed)
 }
@@ -499,6 +500,7 @@ fn principled_defaults_and_flags_are_mitsubas() {
 /// eval_pdf against Mitsuba 3.9.1 (`scalar_rgb`, `BSDF::eval_pdf` of `principled`
 /// plugins made by `mi.load_dict` with the same parameters, at the same local
 /// directions): front reflection, transmission, from inside out and inside reflection.
+/// `scripts/mitsuba_fixtures.py principled` prints the table below.
 #[test]
 fn principled_matches_mitsuba_values() {
     use mediareg::bsdf::principled::eta_from_specular;
@@ -538,7 +540,8 @@ fn principled_matches_mitsuba_values() {
         (n(0.3, -0.2, -0.7), n(-0.5, 0.3, 0.6)),
         (n(0.3, -0.2, -0.7), n(-0.4, 0.3, -0.7)),
     ];
-    // Mitsuba's (f · |cos θ_o|, pdf) per BSDF and direction pair, in `dirs`' order.
+    // Mitsuba's (f · |cos θ_o|, pdf) per BSDF and direction pair, in `dirs`' order
+    // (scripts/mitsuba_fixtures.py principled).
     type Want = [([f32; 3], f32); 4];
     let wants: [(&str, Principled, Want); 3] = [
         (

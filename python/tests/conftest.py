@@ -1,5 +1,7 @@
-"""Shared fixtures: the repository, the CLI binary (built by cargo if missing)."""
+"""Shared fixtures: the repository, the CLI binary (built by cargo if missing), the
+optional packages the cluster tests need."""
 
+import importlib
 import os
 import pathlib
 import subprocess
@@ -31,3 +33,16 @@ def cli():
         )
 
     return run
+
+
+def require(module, opt_out):
+    """Imports `module` for a test. scripts/test_python installs it, so its absence is a
+    failure (a skip would pass a test that checked nothing) unless $`opt_out` is set,
+    which scripts/test_python also reads to leave the package out."""
+    if os.environ.get(opt_out):
+        return pytest.importorskip(module, reason=f"{opt_out} is set")
+    try:
+        return importlib.import_module(module)
+    except ImportError as e:
+        pytest.fail(f"{module} is not installed ({e}): scripts/test_python installs it; "
+                    f"set {opt_out}=1 to skip the tests that need it")

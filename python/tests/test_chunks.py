@@ -12,7 +12,7 @@ import pytest
 
 import mediareg
 import mediareg.cluster
-from conftest import scene
+from conftest import require, scene
 
 CHUNKS = 8
 SPP = 16
@@ -76,9 +76,7 @@ def test_split():
 
 @pytest.fixture(scope="module")
 def local_ray():
-    ray = pytest.importorskip(
-        "ray", reason="ray is not installed (pip install ray): the cluster test is opt-in"
-    )
+    ray = require("ray", "MEDIAREG_NO_RAY")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield ray
     ray.shutdown()
@@ -109,9 +107,7 @@ def test_ray_cluster_render_matches_a_single_render(local_ray, tmp_path):
 
 
 def test_ray_mitsuba_reference_equals_the_script(local_ray, tmp_path):
-    pytest.importorskip(
-        "mitsuba", reason="mitsuba is not installed in this venv (pip install mitsuba): opt-in"
-    )
+    require("mitsuba", "MEDIAREG_NO_MITSUBA")
     import json
     import subprocess
     import sys

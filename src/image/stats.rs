@@ -440,40 +440,4 @@ pub fn compare(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn noisy(seed: u64, n: usize, k: usize, offset: f32) -> Vec<Vec<[f32; 3]>> {
-        let mut rng = crate::sampling::Pcg32::for_pixel(seed, 0);
-        (0..k)
-            .map(|_| {
-                (0..n)
-                    .map(|i| {
-                        let base = 0.5 + 0.3 * ((i % 17) as f32 / 17.0);
-                        // Sum of 12 uniforms − 6: approximately N(0, 1).
-                        let g = |r: &mut crate::sampling::Pcg32| {
-                            (0..12).map(|_| r.next_1d()).sum::<f32>() - 6.0
-                        };
-                        [
-                            base + offset + 0.05 * g(&mut rng),
-                            base + 0.05 * g(&mut rng),
-                            base + 0.05 * g(&mut rng),
-                        ]
-                    })
-                    .collect()
-            })
-            .collect()
-    }
-
-    #[test]
-    fn same_distribution_passes_and_shift_fails() {
-        let layout = PixelLayout::independent(64);
-        let a = Estimate::from_chunks(&noisy(1, 4096, 8, 0.0), layout);
-        let b = Estimate::from_chunks(&noisy(2, 4096, 8, 0.0), layout);
-        let c = compare(&a, &b, layout, 1e-3, 1e-6);
-        assert!(c.passed, "{c}");
-        let shifted = Estimate::from_chunks(&noisy(3, 4096, 8, 0.01), layout);
-        let c = compare(&shifted, &b, layout, 1e-3, 1e-6);
-        assert!(!c.passed, "a 2% shift must be detected: {c}");
-    }
-}
+mod tests;

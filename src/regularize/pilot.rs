@@ -276,28 +276,225 @@ pub fn choose_factor(
             error: [0.0; 3],
         });
     }
-    // t(f): the module comment's straight line.
+    predict_errors(&mut candidates, run_spp, n_eff);
+    Pilot {
+        factor: best_factors(&candidates),
+        candidates,
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+/// Fills each candidate's `error` with (P1) for a run of `run_spp` spp at factor 1 and
+/// frames worth `n_eff`, the seconds per spp taken from the module comment's line.
+fn predict_errors(candidates: &mut [Candidate], run_spp: f64, n_eff: f64) {
     let times: Vec<(f64, f64)> = candidates
         .iter()
         .map(|c| (c.factor as f64, c.seconds_per_spp))
         .collect();
     let time_at = fit_line(&times);
-    for c in &mut candidates {
+    for c in candidates {
         // N_f: the spp that factor 1's time for N buys at this factor.
         let n_f = run_spp * time_at(1.0) / time_at(c.factor as f64);
         c.error = [0, 1, 2]
             .map(|k| (c.var_source[k] + c.var_difference_filtered[k] / n_eff) / n_f + c.bias2[k]);
     }
-    let best = [0, 1, 2].map(|c| {
+}
+
+/// Per channel, the factor of the least predicted error.
+fn best_factors(candidates: &[Candidate]) -> [f32; 3] {
+    [0, 1, 2].map(|c| {
         candidates
             .iter()
             .min_by(|a, b| a.error[c].total_cmp(&b.error[c]))
             .expect("candidates")
             .factor
-    });
-    Pilot {
-        factor: best,
-        candidates,
-        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// N_eff against the geometric series' closed forms, q = 1 − w_a:
+    /// Σ w = (1 − qⁿ)/(1 − q), Σ w² = (1 − q²ⁿ)/(1 − q²).
+    #[test]
+    fn effective_frames_is_the_weights_closed_form() {
+        for (frames, w_a) in [(11, 0.1), (3, 0.5), (25, 0.3), (2, 0.9)] {
+            let q: f64 = 1.0 - w_a;
+            let n = frames as i32;
+            let sum = (1.0 - q.powi(n)) / (1.0 - q);
+            let sq = (1.0 - q.powi(2 * n)) / (1.0 - q * q);
+            let want = sum * sum / sq;
+            let got = effective_frames(frames, w_a);
+            assert!(
+                (got - want).abs() < 1e-12 * want,
+                "{frames}, {w_a}: {got} vs {want}"
+            );
+        }
+        // Equal weights are worth every frame; one frame is one.
+        assert!((effective_frames(11, 0.0) - 11.0).abs() < 1e-12);
+        assert_eq!(effective_frames(1, 0.1), 1.0);
+        // Many frames at w_a 0.1 are worth (1 + q)/(1 − q) = 19.
+        assert!((effective_frames(2000, 0.1) - 19.0).abs() < 1e-9);
+    }
+
+    /// The least-squares line, by hand: x̄ = 1, ȳ = 2, Sxx = 2, Sxy = 1, so the slope is
+    /// 1/2 through (1, 2).
+    #[test]
+    fn fit_line_is_least_squares_and_stays_positive() {
+        let line = fit_line(&[(0.0, 1.0), (1.0, 3.0), (2.0, 2.0)]);
+        for (x, want) in [(0.0, 1.5), (1.0, 2.0), (3.0, 3.0)] {
+            assert!((line(x) - want).abs() < 1e-12, "{x}: {}", line(x));
+        }
+        // Exact points lie on it.
+        let line = fit_line(&[(0.2, 5.0), (0.6, 4.2), (1.0, 3.4)]);
+        assert!((line(0.4) - 4.6).abs() < 1e-12);
+        // One x: the mean.
+        let line = fit_line(&[(0.5, 1.0), (0.5, 3.0)]);
+        assert_eq!((line(0.0), line(9.0)), (2.0, 2.0));
+        // A time never reaches 0: past its root the line is floored at ȳ · 1e-3.
+        let line = fit_line(&[(0.0, 1.0), (1.0, 0.5)]);
+        assert_eq!(line(10.0), 0.75e-3);
+    }
+
+    /// A candidate whose channels all measure the same.
+    fn candidate(factor: f32, var_source: f64, var_filtered: f64, bias2: f64, t: f64) -> Candidate {
+        Candidate {
+            factor,
+            var_source: [var_source; 3],
+            var_difference: [var_filtered; 3],
+            var_difference_filtered: [var_filtered; 3],
+            bias2: [bias2; 3],
+            seconds_per_spp: t,
+            error: [0.0; 3],
+        }
+    }
+
+    /// (P1) by hand, and each of its terms deciding the choice: factor 1 wins the
+    /// baseline by a little, and lowering any one of factor 0.5's terms alone (the
+    /// source's variance, the filtered difference's or its weight 1/N_eff, the bias, the
+    /// time per spp) hands the choice to 0.5.
+    #[test]
+    fn each_term_of_the_error_decides_the_choice() {
+        let n = 100.0;
+        let plain = || candidate(1.0, 8.0, 0.0, 0.0, 1.0);
+        let run = |low: Candidate, plain: Candidate, n_eff: f64| {
+            let mut c = vec![plain, low];
+            predict_errors(&mut c, n, n_eff);
+            (best_factors(&c), c[0].error[0], c[1].error[0])
+        };
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12 * b.abs();
+        // Equal times: N_f = N, error = (V_s + V_F / N_eff) / N + b².
+        let (best, e1, e2) = run(candidate(0.5, 2.0, 20.0, 0.011, 1.0), plain(), 4.0);
+        assert!(close(e1, 0.08) && close(e2, 0.081), "{e1}, {e2}");
+        assert_eq!(best, [1.0; 3]);
+        // (what, factor 0.5's V_s, V_F, b², factor 1's seconds per spp, N_eff, 0.5's error).
+        let cases = [
+            ("source variance", 1.0, 20.0, 0.011, 1.0, 4.0, 0.071),
+            ("filtered difference", 2.0, 10.0, 0.011, 1.0, 4.0, 0.056),
+            ("more frames", 2.0, 20.0, 0.011, 1.0, 10.0, 0.051),
+            ("bias", 2.0, 20.0, 0.001, 1.0, 4.0, 0.071),
+            // Factor 1 twice as slow per spp (the line through the two times): 2N spp.
+            ("time", 2.0, 20.0, 0.011, 2.0, 4.0, 0.046),
+        ];
+        for (what, v_s, v_f, b2, t_plain, n_eff, want) in cases {
+            let plain = candidate(1.0, 8.0, 0.0, 0.0, t_plain);
+            let (best, e1, e2) = run(candidate(0.5, v_s, v_f, b2, 1.0), plain, n_eff);
+            assert!(close(e1, 0.08) && close(e2, want), "{what}: {e1}, {e2}");
+            assert_eq!(best, [0.5; 3], "{what}");
+        }
+    }
+
+    /// Each channel picks its own factor from its own terms.
+    #[test]
+    fn channels_choose_apart() {
+        let mut low = candidate(0.3, 1.0, 1.0, 0.0, 1.0);
+        low.bias2 = [0.0, 1.0, 0.0];
+        let mut mid = candidate(0.7, 2.0, 1.0, 0.0, 1.0);
+        mid.var_source = [2.0, 2.0, 0.5];
+        let mut c = vec![candidate(1.0, 5.0, 0.0, 0.0, 1.0), low, mid];
+        predict_errors(&mut c, 10.0, 1.0);
+        assert_eq!(best_factors(&c), [0.3, 0.7, 0.7]);
+    }
+
+    /// `spatial_terms` against the filter written out as a matrix (its columns the
+    /// filtered unit impulses) and (P2) summed term by term.
+    #[test]
+    fn spatial_terms_match_the_filter_as_a_matrix() {
+        let (w, h) = (6, 5);
+        let n = w * h;
+        let features = Features {
+            depth: (0..n).map(|i| 1.0 + (i % 4) as f32 * 0.03).collect(),
+            normal: (0..n)
+                .map(|i| if i % w < 2 { Vec3::Y } else { Vec3::Z })
+                .collect(),
+            position: vec![Vec3::ZERO; n],
+            direction: vec![Vec3::Z; n],
+        };
+        let guide: Vec<[f32; 3]> = (0..n).map(|i| [0.3 + 0.04 * (i % 5) as f32; 3]).collect();
+        let params = BilateralParams::default();
+        let (norm2, diagonal) = spatial::column_norms(&guide, &features, w, &params);
+        let filter = FilterMatrix {
+            guide: guide.clone(),
+            features: &features,
+            width: w,
+            params: &params,
+            norm2,
+            diagonal,
+        };
+        // F[i][j], column j the filtered impulse at j.
+        let mut f = vec![vec![0.0f64; n]; n];
+        for j in 0..n {
+            let mut impulse = vec![[0.0f32; 3]; n];
+            impulse[j] = [1.0; 3];
+            let column = spatial::denoise(&impulse, &guide, &features, w, &params);
+            for i in 0..n {
+                f[i][j] = column[i][0] as f64;
+            }
+        }
+        let (samples, chunks) = (16.0, 8);
+        // A checkerboard difference the guide does not show (the filter blurs it: a
+        // bias), over noise that differs per channel and pixel.
+        let difference = Measured {
+            mean: (0..n)
+                .map(|i| {
+                    let s = if (i % w + i / w) % 2 == 0 { 1.0 } else { -1.0 };
+                    [0.2 * s, 0.02 * s, 0.0]
+                })
+                .collect(),
+            var_mean: (0..n)
+                .map(|i| [1e-3 * (1 + i % 3) as f32, 2e-3, 5e-4 * (1 + i % 7) as f32])
+                .collect(),
+        };
+        let (left, bias2) = spatial_terms(&difference, samples, chunks, &filter);
+        for c in 0..3 {
+            let (mut want_left, mut power, mut var, mut seen) = (0.0, 0.0, 0.0, 0.0);
+            for (j, row) in f.iter().enumerate() {
+                let v = difference.var_mean[j][c] as f64;
+                let col2: f64 = (0..n).map(|i| f[i][j] * f[i][j]).sum();
+                let minus_i2: f64 = (0..n)
+                    .map(|i| (f[i][j] - if i == j { 1.0 } else { 0.0 }).powi(2))
+                    .sum();
+                want_left += col2 * v * samples;
+                power += minus_i2 * v;
+                var += 2.0 * (minus_i2 * v).powi(2) * (1.0 + 1.0 / (chunks as f64 - 1.0));
+                let fd: f64 = (0..n).map(|k| row[k] * difference.mean[k][c] as f64).sum();
+                seen += (fd - difference.mean[j][c] as f64).powi(2);
+            }
+            let want_bias = (seen - power + BIAS_Z * var.sqrt()).max(0.0);
+            assert!(
+                (left[c] - want_left).abs() < 1e-4 * want_left,
+                "{c}: {left:?} vs {want_left}"
+            );
+            assert!(
+                (bias2[c] - want_bias).abs() < 1e-4 * want_bias.max(1e-6),
+                "{c}: {bias2:?} vs {want_bias}"
+            );
+        }
+        // The checkerboard's bias shows in the first channel; the zero third channel's
+        // estimate is below 0 before the bound and clamps at 0 with it.
+        assert!(bias2[0] > 1.0, "{bias2:?}");
+        assert_eq!(bias2[2], 0.0);
     }
 }
