@@ -100,12 +100,11 @@ const CASES: &[(&str, u32, f64)] = &[
 const SEEDS: [u64; 3] = [11, 12, 13];
 
 /// Per case and seed: the ratios to the noisy render's corrected MSE of OIDN (the
-/// default: seen emission kept out, albedo and normal), the identity and a box blur.
+/// default: seen emission kept out, no auxiliary images), the identity and a box blur.
 fn ratios(name: &str, spp: u32, seed: u64) -> (f64, f64, f64) {
     let n = render_noisy(name, &[], spp, seed);
     let noisy = error(&n, &n.image);
-    let denoised =
-        denoise::oidn(&n.image, Some(&n.seen), Some(&n.aux), AuxUse::AlbedoNormal).unwrap();
+    let denoised = denoise::oidn(&n.image, Some(&n.seen), Some(&n.aux), AuxUse::default()).unwrap();
     let identity = n.image.clone();
     let blurred = box_blur(&n.image, 3);
     (

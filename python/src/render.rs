@@ -94,7 +94,7 @@ pub fn render<'py>(
         let run = || {
             let r = integrator::render(&data, &shot, &opts);
             let d = (with_denoiser && !r.stats.interrupted)
-                .then(|| integrator::denoised::oidn(&data, &shot, &r, AuxUse::AlbedoNormal, None));
+                .then(|| integrator::denoised::oidn(&data, &shot, &r, AuxUse::default(), None));
             (r, d)
         };
         match pool {

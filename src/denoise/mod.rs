@@ -30,12 +30,13 @@ pub struct AuxImages {
 }
 
 /// Which auxiliary images to give OIDN (its `RT` filter takes albedo alone, or albedo
-/// and normal).
+/// and normal). None by default: on the Table 1 scenes, media seen through null
+/// boundaries, the first hit's albedo and normal made the output worse (docs/denoise.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum AuxUse {
+    #[default]
     None,
     Albedo,
-    #[default]
     AlbedoNormal,
 }
 
@@ -88,11 +89,15 @@ pub fn oidn(
     })
 }
 
-/// OIDN on a signed image (a derivative, a difference; with the albedo and normal
-/// guides): its positive and negative parts each through the filter (the HDR filter
-/// takes non-negative values), the second only where there is one. An image of zeros
-/// stays zero.
-pub fn oidn_signed(img: &Image, aux: &AuxImages) -> Result<Image, OidnError> {
+/// OIDN on a signed image (a derivative, a difference), with the auxiliary images
+/// `use_aux` names: its positive and negative parts each through the filter (the HDR
+/// filter takes non-negative values), the second only where there is one. An image of
+/// zeros stays zero.
+pub fn oidn_signed(
+    img: &Image,
+    aux: Option<&AuxImages>,
+    use_aux: AuxUse,
+) -> Result<Image, OidnError> {
     let part = |sign: f32| Image {
         pixels: img
             .pixels
@@ -105,7 +110,7 @@ pub fn oidn_signed(img: &Image, aux: &AuxImages) -> Result<Image, OidnError> {
         if part.pixels.iter().flatten().all(|&v| v == 0.0) {
             return Ok(None);
         }
-        oidn(part, None, Some(aux), AuxUse::AlbedoNormal).map(Some)
+        oidn(part, None, aux, use_aux).map(Some)
     };
     let positive = filtered(&part(1.0))?;
     let negative = filtered(&part(-1.0))?;

@@ -22,10 +22,9 @@ use super::reproject;
 use super::sequence::CameraPath;
 use super::spatial::{self, BilateralParams};
 use super::temporal::{self, Reprojection};
-use crate::denoise::{self, OidnError};
+use crate::denoise::{self, AuxUse, OidnError};
 use crate::error::SceneError;
 use crate::image::Image;
-use crate::integrator::aovs;
 use crate::integrator::volpath::Gradient;
 use crate::integrator::{render, RenderOptions};
 use crate::scene::shot::Shot;
@@ -72,9 +71,9 @@ pub struct Options {
     pub path: CameraPath,
     pub reproject: Reproject,
     pub spatial: Option<BilateralParams>,
-    /// Filter the blended gradient (or difference) with Open Image Denoise, guided by the
-    /// albedo and normal of the first visible surface (`integrator::aovs`), instead of
-    /// the joint bilateral filter (`spatial` is then None).
+    /// Filter the blended gradient (or difference) with Open Image Denoise (as
+    /// `render --denoise oidn`, without auxiliary images) instead of the joint bilateral
+    /// filter (`spatial` is then None).
     pub oidn: bool,
     pub method: Method,
     /// Choose `factor` with a pilot (`pilot`; the difference predictor only): `chunks`
@@ -406,13 +405,12 @@ pub fn regularize(
         denoised = spatial::denoise(&denoised, &source.pixels, &features, w, params);
     }
     if opts.oidn {
-        let aux = aovs::first_hit_aovs(scene, shot);
         let blended = Image {
             width: w,
             height: h,
             pixels: denoised,
         };
-        denoised = denoise::oidn_signed(&blended, &aux)
+        denoised = denoise::oidn_signed(&blended, None, AuxUse::default())
             .map_err(RegularizeError::Denoise)?
             .pixels;
     }

@@ -80,8 +80,8 @@ pub struct RegularizeArgs {
     #[arg(long)]
     pub no_spatial: bool,
     /// Filter the blended difference (or gradient) with a denoiser instead of the
-    /// bilateral filter: `oidn` (Intel Open Image Denoise, guided by the first hit's
-    /// albedo and normal; R_s stays as rendered). Needs the library: scripts/fetch_oidn.
+    /// bilateral filter: `oidn` (Intel Open Image Denoise; R_s stays as rendered).
+    /// Needs the library: scripts/fetch_oidn.
     #[arg(long, value_enum, value_name = "DENOISER", conflicts_with = "spatial")]
     pub denoise: Option<DenoiseArg>,
     /// The prediction function.

@@ -40,14 +40,9 @@ pub struct RenderArgs {
     /// denoiser). Needs the library: scripts/fetch_oidn.
     #[arg(long, value_enum, value_name = "DENOISER")]
     pub denoise: Option<DenoiseArg>,
-    /// Which auxiliary images the denoiser takes: albedo and normal (the default),
-    /// albedo, or none.
-    #[arg(
-        long,
-        value_enum,
-        default_value = "albedo-normal",
-        requires = "denoise"
-    )]
+    /// Which auxiliary images the denoiser takes: none (the default: they did not help
+    /// on media, docs/denoise.md), albedo, or albedo and normal.
+    #[arg(long, value_enum, default_value = "none", requires = "denoise")]
     pub denoise_aux: AuxArg,
     /// Also write the albedo and normal of what each pixel sees first
     /// (OUT_albedo.exr, OUT_normal.exr), the denoiser's auxiliary images.
