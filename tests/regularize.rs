@@ -183,9 +183,15 @@ fn command_writes_every_output_and_refuses_bad_parameters() {
     std::fs::create_dir_all(&dir).unwrap();
     let scene = cube();
     let scene = scene.to_str().unwrap();
-    // Small and quick: 16×16 at 2 spp.
+    // Small and quick: 16×16 at 2 spp (unless `extra` says otherwise).
     let run_ok = |extra: &[&str]| {
-        let mut args = vec![scene, "-D", "res=16", "--spp", "2"];
+        let spp = if extra.contains(&"--spp") {
+            vec![]
+        } else {
+            vec!["--spp", "2"]
+        };
+        let mut args = vec![scene, "-D", "res=16"];
+        args.extend(spp);
         args.extend(extra);
         let o = run_cli(&args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -207,9 +213,25 @@ fn command_writes_every_output_and_refuses_bad_parameters() {
             assert!(p.is_file(), "{} missing", p.display());
         }
     }
-    // The default: the difference predictor, its factor chosen by the pilot.
+    // With the bilateral filter the difference predictor's factor is the pilot's, but a
+    // pilot of more than a tenth of 3 frames × 2 spp is not run: plain volpath.
     assert!(
-        stdout.contains("chosen by the pilot") && stdout.contains("3 frames"),
+        stdout.contains("the pilot would cost more than 10%") && stdout.contains("3 frames"),
+        "{stdout}"
+    );
+    let stdout = run_ok(&[
+        "--frames",
+        "3",
+        "--spp",
+        "70",
+        "--denoise",
+        "bilateral",
+        "--no-png",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        stdout.contains("chosen by the pilot") && stdout.contains("joint bilateral"),
         "{stdout}"
     );
     // The paper's predictor at its default factor 0.95.

@@ -1,14 +1,16 @@
 //! `mediareg table` at a reduced size: the cube of the paper's figures at 32×32 against a
 //! committed Mitsuba 3 reference (reference/table_small/cube.*, made with -D res=32), the
 //! same pipeline as the full-size run in reports/. Checks that the files say what the
-//! images are: every MSE recomputed from the EXRs the JSON names equals the JSON's.
+//! images are: every MSE recomputed from the EXRs table1_seeds.json names equals the
+//! JSON's, and table1.json's summaries are the means, ratios and best baselines of those
+//! rows.
 
 mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use mediareg::report::{Method, Row};
+use mediareg::report::{Accounting, Method, Row, Summary};
 
 fn table(out: &Path, extra: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_mediareg"))
@@ -17,6 +19,7 @@ fn table(out: &Path, extra: &[&str]) -> Output {
             "table", "--scenes", "cube", "-D", "res=32", "--budget", "0.4",
         ])
         .args(["--reference-dir", "reference/table_small", "--frames", "5"])
+        .args(["--seeds", "2"])
         .args(["-t", "2", "--out"])
         .arg(out)
         .args(extra)
@@ -44,18 +47,29 @@ fn table_files_agree_with_the_images_they_name() {
     );
 
     let rows: Vec<Row> =
-        serde_json::from_str(&std::fs::read_to_string(out.join("table1.json")).unwrap())
-            .expect("table1.json is a list of rows");
-    let methods: Vec<Method> = rows.iter().map(|r| r.method).collect();
-    assert_eq!(
-        methods,
-        [
-            Method::Volpath,
-            Method::Regularized,
-            Method::RegularizedSpatial,
-            Method::RegularizedAuto
-        ]
-    );
+        serde_json::from_str(&std::fs::read_to_string(out.join("table1_seeds.json")).unwrap())
+            .expect("table1_seeds.json is a list of rows");
+    let oidn = mediareg::denoise::oidn::load().is_ok();
+    let mut want = vec![Method::Volpath];
+    want.extend(oidn.then_some(Method::VolpathOidn));
+    want.extend([
+        Method::RegularizedPaper,
+        Method::Regularized,
+        Method::VolpathFiltered,
+    ]);
+    let methods: Vec<Method> = rows
+        .iter()
+        .filter(|r| r.accounting == Accounting::Frame && r.seed == rows[0].seed)
+        .map(|r| r.method)
+        .collect();
+    assert_eq!(methods, want);
+    let seeds: Vec<u64> = rows.iter().fold(Vec::new(), |mut v, r| {
+        if !v.contains(&r.seed) {
+            v.push(r.seed);
+        }
+        v
+    });
+    assert_eq!(seeds.len(), 2, "--seeds 2");
     for r in &rows {
         assert_eq!(r.scene, "cube");
         assert!(r.spp >= 1 && r.seconds > 0.0 && r.seconds.is_finite());
@@ -89,24 +103,85 @@ fn table_files_agree_with_the_images_they_name() {
         assert!((corrected - r.mse_corrected).abs() <= 1e-9 * raw);
         assert!(raw > 0.0, "a Monte Carlo image equal to its reference?");
     }
-    let seq = &rows[1];
+    let seq = rows
+        .iter()
+        .find(|r| r.method == Method::Regularized && r.accounting == Accounting::Frame)
+        .unwrap();
     assert_eq!(seq.sequence_frames, Some(5));
     assert!(seq.sequence_seconds.unwrap() >= seq.seconds);
+    // The still accounting charges the same image the whole sequence.
+    let still = rows
+        .iter()
+        .find(|r| {
+            r.method == Method::Regularized
+                && r.accounting == Accounting::Still
+                && r.seed == seq.seed
+        })
+        .unwrap();
+    assert_eq!(
+        (still.image.as_str(), still.seconds),
+        (seq.image.as_str(), seq.sequence_seconds.unwrap())
+    );
+
+    // The summaries: means over the seeds, ratios and the best baseline.
+    let summaries: Vec<Summary> =
+        serde_json::from_str(&std::fs::read_to_string(out.join("table1.json")).unwrap())
+            .expect("table1.json is a list of summaries");
+    for s in &summaries {
+        let own: Vec<&Row> = rows
+            .iter()
+            .filter(|r| r.method == s.method && r.accounting == s.accounting)
+            .collect();
+        assert_eq!(s.seeds.len(), own.len());
+        let mean =
+            |f: &dyn Fn(&Row) -> f64| own.iter().map(|r| f(r)).sum::<f64>() / own.len() as f64;
+        assert!(
+            (s.mse_corrected - mean(&|r| r.mse_corrected)).abs() <= 1e-12 * s.mse.abs().max(1e-30)
+        );
+        let baseline = |m: Method| {
+            summaries
+                .iter()
+                .find(|b| b.method == m && b.accounting == s.accounting)
+                .map(|b| b.mse_corrected)
+        };
+        let best = [
+            Method::Volpath,
+            Method::VolpathOidn,
+            Method::VolpathFiltered,
+        ]
+        .into_iter()
+        .filter_map(|m| baseline(m).map(|v| (m, v)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
+        assert_eq!(s.best, Some(best.0), "{:?} {:?}", s.method, s.accounting);
+        if let Some([r, lo, hi]) = s.ratio_to_best {
+            assert!((r - s.mse_corrected / best.1).abs() <= 1e-9 * r.abs() && lo <= r && r <= hi);
+        }
+        if s.method == Method::Volpath {
+            assert_eq!(s.ratio_to_volpath, Some([1.0; 3]));
+        }
+    }
+    for accounting in [Accounting::Frame, Accounting::Still] {
+        assert!(summaries
+            .iter()
+            .any(|s| s.method == Method::Volpath && s.accounting == accounting));
+    }
 
     let csv = std::fs::read_to_string(out.join("table1.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(
-        lines[0],
-        "scene,method,spp,seconds,mse,mse_corrected,image,reference"
-    );
-    assert_eq!(lines.len(), 1 + rows.len());
-    for (line, r) in lines[1..].iter().zip(&rows) {
-        assert!(line.starts_with(&format!("cube,{},{},", r.method.as_str(), r.spp)));
+    assert!(lines[0].starts_with("scene,method,accounting,seeds,spp,seconds,mse,mse_corrected,"));
+    assert_eq!(lines.len(), 1 + summaries.len());
+    for (line, s) in lines[1..].iter().zip(&summaries) {
+        assert!(line.starts_with(&format!(
+            "cube,{},{},2,",
+            s.method.as_str(),
+            s.accounting.as_str()
+        )));
     }
     let md = std::fs::read_to_string(out.join("table1.md")).unwrap();
     for m in [
-        "| cube | volpath |",
-        "| cube | regularized |",
+        "| cube | volpath | frame |",
+        "| cube | regularized | still |",
         "## Against the paper",
     ] {
         assert!(md.contains(m), "table1.md lacks {m}");

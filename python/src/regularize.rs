@@ -19,12 +19,12 @@ use crate::{bad_arg, param_text, PyScene, SceneError};
 /// regularize(scene, spp=None, seed=0, threads=None, medium=None, predict="difference",
 /// factor=None, pilot_renders=8, pilot_spp=1, c_beta=0.5, fit_spp=4, fit_at=1.0,
 /// frames=11, wa=0.1, reproject="exact", orbit=None, target=None, dolly=None,
-/// camera_path=None, spatial=None)
+/// camera_path=None, spatial=None, denoise=None)
 #[pyfunction]
 #[pyo3(signature = (scene, spp=None, seed=0, threads=None, medium=None, predict="difference",
     factor=None, pilot_renders=8, pilot_spp=1, c_beta=None, fit_spp=4, fit_at=1.0, frames=11,
     wa=0.1, reproject="exact", orbit=None, target=None, dolly=None, camera_path=None,
-    spatial=None))]
+    spatial=None, denoise=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn regularize<'py>(
     py: Python<'py>,
@@ -48,6 +48,7 @@ pub fn regularize<'py>(
     dolly: Option<f32>,
     camera_path: Option<PathBuf>,
     spatial: Option<bool>,
+    denoise: Option<&str>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let data = Arc::clone(&scene.get().inner);
     if spp == Some(0) {
@@ -66,12 +67,13 @@ pub fn regularize<'py>(
     })?;
     let method = match predict {
         "difference" => Method::Difference,
+        "plain" => Method::Radiance,
         "paper" => Method::Paper(c_beta),
         "linear" => Method::Linear,
         "loglinear" => Method::LogLinear,
         p => {
             return Err(bad_arg(format!(
-                "predict=\"{p}\": one of \"difference\", \"paper\", \"linear\", \"loglinear\""
+                "predict=\"{p}\": one of \"difference\", \"paper\", \"linear\", \"loglinear\", \"plain\""
             )))
         }
     };
@@ -104,6 +106,21 @@ pub fn regularize<'py>(
     if target.is_some() && !matches!(motion, Motion::Orbit { .. }) {
         return Err(bad_arg("target= is the centre of orbit=; pass both"));
     }
+    // As the CLI's --denoise: None picks OIDN when the library loads (difference, plain).
+    let oidn = match (denoise, spatial) {
+        (Some("oidn"), _) => Some(true),
+        (Some("bilateral"), _) => Some(false),
+        (Some(d), _) => {
+            return Err(bad_arg(format!(
+                "denoise=\"{d}\": one of \"oidn\", \"bilateral\" (None: oidn when the library is there)"
+            )))
+        }
+        (None, Some(true)) => Some(false),
+        (None, _) => None,
+    };
+    if oidn == Some(true) {
+        mediareg::denoise::oidn::load().map_err(|e| crate::Error::new_err(e.to_string()))?;
+    }
     let reproject = match reproject {
         "exact" => Reproject::Exact,
         "shift" => Reproject::Shift,
@@ -127,7 +144,7 @@ pub fn regularize<'py>(
         reproject,
         motion,
         spatial,
-        oidn: false,
+        oidn,
         show_progress: false,
     };
     let shot = data.shot.with(spp.unwrap_or(data.shot.spp), seed);

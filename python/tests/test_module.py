@@ -169,7 +169,7 @@ def test_ctrl_c_stops_a_render():
 @pytest.mark.parametrize(
     "flags, kwargs",
     [
-        (["--factor", "0.8"], {"factor": 0.8}),
+        (["--factor", "0.8", "--denoise", "bilateral"], {"factor": 0.8, "denoise": "bilateral"}),
         (
             ["--predict", "paper", "--orbit", "1", "--no-spatial"],
             {"predict": "paper", "orbit": 1.0, "spatial": False},

@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 
-use super::pipeline::{CBeta, Method, Options, PilotSize, Reproject};
+use super::pipeline::{CBeta, Method, OidnUse, Options, PilotSize, Reproject};
 use super::sequence::{image_centre_point, CameraPath};
 use super::spatial::BilateralParams;
 use crate::scene::shot::Shot;
@@ -48,9 +48,9 @@ pub struct Choices {
     pub motion: Motion,
     /// None: on with the difference predictor, off with the others.
     pub spatial: Option<bool>,
-    /// Filter the difference (or gradient) with Open Image Denoise instead of the
-    /// bilateral filter.
-    pub oidn: bool,
+    /// Filter with Open Image Denoise (`OidnUse::Frames`) instead of the bilateral
+    /// filter. None: with the difference predictor when the library loads.
+    pub oidn: Option<bool>,
     pub show_progress: bool,
 }
 
@@ -66,11 +66,16 @@ impl Default for Choices {
             reproject: Reproject::Exact,
             motion: Motion::Static,
             spatial: None,
-            oidn: false,
+            oidn: None,
             show_progress: false,
         }
     }
 }
+
+/// The difference predictor's source factor when OIDN filters and none is given: the
+/// factor measured best with every frame denoised (docs/regularize.md); the pilot's
+/// model is of the bilateral filter, not of OIDN.
+pub const DEFAULT_FACTOR: f32 = 0.2;
 
 /// A choice that cannot be made for the scene.
 #[derive(Clone, Debug)]
@@ -120,10 +125,20 @@ pub fn options(scene: &Scene, shot: &Shot, c: &Choices) -> Result<(Options, Shot
         }
     };
     let difference = c.method == Method::Difference;
+    // The predictors whose filtered image is radiance-like (a difference, radiance).
+    let filtered = difference || c.method == Method::Radiance;
+    let oidn = c
+        .oidn
+        .unwrap_or_else(|| filtered && crate::denoise::oidn::load().is_ok());
     // `auto` leaves the factor to the pilot; 0.95 is then a placeholder it replaces.
     let (factor, auto_factor) = match c.factor {
         Some(Factor::Auto) => (0.95, Some(c.pilot)),
         Some(Factor::Fixed(f)) => (f, None),
+        // One frame through OIDN: R_s + D is plain volpath's estimate on every path, and
+        // OIDN on the two parts measured no better than on their sum, so the default is
+        // the plain render through OIDN (`render --denoise oidn`, bit for bit).
+        None if difference && oidn && c.frames == 1 => (1.0, None),
+        None if difference && oidn => (DEFAULT_FACTOR, None),
         None => (0.95, difference.then_some(c.pilot)),
     };
     let options = Options {
@@ -135,9 +150,12 @@ pub fn options(scene: &Scene, shot: &Shot, c: &Choices) -> Result<(Options, Shot
         reproject: c.reproject,
         spatial: c
             .spatial
-            .unwrap_or(difference && !c.oidn)
+            .unwrap_or(filtered && !oidn)
             .then(BilateralParams::default),
-        oidn: c.oidn,
+        oidn: match oidn {
+            true => OidnUse::Frames,
+            false => OidnUse::None,
+        },
         auto_factor,
         method: c.method,
         show_progress: c.show_progress,

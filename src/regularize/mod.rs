@@ -6,10 +6,12 @@
 //! `pipeline` runs the whole method; the steps are `sequence` (camera paths),
 //! `reproject` and `temporal` (Eq. 9–10), `spatial` (a still-image denoiser), `predict`
 //! (Eq. 11–12), `fit` (c_β without a reference), `pilot` (the source factor without a
-//! reference, for the difference predictor) and `choices` (the options from a caller's
+//! reference, for the difference predictor), `fallback` (one plain frame, through OIDN
+//! where that lowers the error) and `choices` (the options from a caller's
 //! choices, shared by the CLI and the Python module).
 
 pub mod choices;
+pub mod fallback;
 pub mod fit;
 pub mod pilot;
 pub mod pipeline;
@@ -20,4 +22,6 @@ pub mod spatial;
 pub mod temporal;
 
 pub use choices::{ChoiceError, Choices, Factor, Motion};
-pub use pipeline::{regularize, CBeta, Method, Options, RegularizeError, Regularized, Reproject};
+pub use pipeline::{
+    regularize, CBeta, Method, OidnUse, Options, RegularizeError, Regularized, Reproject,
+};

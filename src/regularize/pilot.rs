@@ -91,6 +91,32 @@ pub struct Pilot {
     pub seconds: f64,
 }
 
+/// The pilot's size: `chunks` ≥ 2 renders of `spp` samples per candidate factor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PilotSize {
+    pub chunks: usize,
+    pub spp: u32,
+}
+
+impl Default for PilotSize {
+    fn default() -> Self {
+        PilotSize { chunks: 8, spp: 1 }
+    }
+}
+
+/// The most of a run's samples (frames × spp, counted at the target albedo) its pilot
+/// may cost: a pilot is worth its time only when it is small beside the render.
+pub const MAX_SHARE: f64 = 0.1;
+
+/// The pilot of `size` cut to `MAX_SHARE` of a run of `frames` × `spp`: fewer renders per
+/// candidate (at least 2, to estimate a variance), else none (`None`).
+pub fn affordable(size: PilotSize, frames: usize, spp: u32) -> Option<PilotSize> {
+    let allowed = MAX_SHARE * frames as f64 * spp as f64;
+    let per_chunk = (CANDIDATES.len() as u32 * size.spp) as f64;
+    let chunks = size.chunks.min((allowed / per_chunk).floor() as usize);
+    (chunks >= 2).then_some(PilotSize { chunks, ..size })
+}
+
 /// N_eff of Eq. 10's weights w_k ∝ (1 − w_a)^k over `frames` frames.
 pub fn effective_frames(frames: usize, w_a: f64) -> f64 {
     let w: Vec<f64> = (0..frames).map(|k| (1.0 - w_a).powi(k as i32)).collect();

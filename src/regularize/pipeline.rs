@@ -15,6 +15,7 @@ use std::time::Instant;
 use glam::{Vec3, Vec3A};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use super::fallback::{self, OidnCheck};
 use super::fit::fit_c_beta;
 use super::pilot::{self, Pilot};
 use super::predict::{Albedos, Predictor};
@@ -26,7 +27,7 @@ use crate::denoise::{self, AuxUse, OidnError};
 use crate::error::SceneError;
 use crate::image::Image;
 use crate::integrator::volpath::Gradient;
-use crate::integrator::{render, RenderOptions};
+use crate::integrator::{aovs, render, RenderOptions};
 use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene};
 
@@ -58,6 +59,29 @@ pub enum Method {
     /// The frames render the difference R(α_t) − R(α_s) in their paths instead of the
     /// derivative, which is denoised the same way and added to R_s.
     Difference,
+    /// The control: the frames render plain radiance at α_t, which goes through the very
+    /// reprojection, blend and filters the method's difference goes through (`factor`
+    /// is ignored, nothing is extrapolated).
+    Radiance,
+}
+
+/// Where Open Image Denoise filters (`render --denoise oidn`'s (D1): the directly seen
+/// emission kept out, no auxiliary images).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum OidnUse {
+    #[default]
+    None,
+    /// The blended difference or gradient (R_s stays as rendered).
+    Difference,
+    /// The prediction R_s + D̃ (the blended difference, unfiltered otherwise): one filter
+    /// on an image whose noise the split and the blend lowered.
+    Prediction,
+    /// Each frame's gradient (difference, radiance) before the blend, the blend then
+    /// averaging the denoiser's residual, which differs from frame to frame; with the
+    /// difference predictor also the target frame's R_s. Measured best of these on the
+    /// Bunny and the Candle (docs/regularize.md): blending raw frames leaves noise
+    /// correlated between neighbouring pixels, which OIDN does not remove.
+    Frames,
 }
 
 #[derive(Clone, Debug)]
@@ -71,10 +95,9 @@ pub struct Options {
     pub path: CameraPath,
     pub reproject: Reproject,
     pub spatial: Option<BilateralParams>,
-    /// Filter the blended gradient (or difference) with Open Image Denoise (as
-    /// `render --denoise oidn`, without auxiliary images) instead of the joint bilateral
-    /// filter (`spatial` is then None).
-    pub oidn: bool,
+    /// Where Open Image Denoise filters, instead of the joint bilateral filter (`spatial`
+    /// is then None).
+    pub oidn: OidnUse,
     pub method: Method,
     /// Choose `factor` with a pilot (`pilot`; the difference predictor only): `chunks`
     /// renders of `spp` samples at each candidate factor.
@@ -82,18 +105,7 @@ pub struct Options {
     pub show_progress: bool,
 }
 
-/// The pilot's size: `chunks` ≥ 2 renders of `spp` samples per candidate factor.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PilotSize {
-    pub chunks: usize,
-    pub spp: u32,
-}
-
-impl Default for PilotSize {
-    fn default() -> Self {
-        PilotSize { chunks: 8, spp: 1 }
-    }
-}
+pub use super::pilot::PilotSize;
 
 impl Default for Options {
     fn default() -> Self {
@@ -105,7 +117,7 @@ impl Default for Options {
             path: CameraPath::Static,
             reproject: Reproject::Exact,
             spatial: None,
-            oidn: false,
+            oidn: OidnUse::None,
             method: Method::Paper(CBeta::Fixed(0.5)),
             auto_factor: None,
             show_progress: false,
@@ -126,6 +138,9 @@ pub struct Timings {
     pub denoise_and_predict: f64,
     /// The pilot that chose the factor (0 without one).
     pub pilot: f64,
+    /// The target frame's own denoising (`OidnUse::Frames`) and the sharpening of its
+    /// seen emission, beside `target_frame`.
+    pub frame_denoise: f64,
 }
 
 pub struct Regularized {
@@ -134,7 +149,13 @@ pub struct Regularized {
     /// The target frame rendered at the source albedo.
     pub source: Image,
     pub raw_gradient: Image,
+    /// The gradient (difference, radiance) blended over frames, before any spatial filter.
+    pub blended: Image,
+    /// What the filters made of `blended`.
     pub gradient: Image,
+    /// The target frame's directly seen emission (`RenderOptions::seen_emission`),
+    /// sharpened at emitter edges, where OIDN filters.
+    pub seen_emission: Option<Image>,
     pub albedos: Albedos,
     /// The c_β used (the paper's predictor only).
     pub c_beta: Option<f32>,
@@ -148,6 +169,11 @@ pub struct Regularized {
     pub invalid_samples: u64,
     /// The pilot's measurements, where it chose the factor.
     pub pilot: Option<Pilot>,
+    /// The factor was to be chosen, but the pilot would have cost more than
+    /// `pilot::MAX_SHARE` of the render: the run is plain volpath (factor 1).
+    pub pilot_unaffordable: bool,
+    /// One plain frame with OIDN: whether OIDN lowered the error (`fallback`).
+    pub oidn_check: Option<OidnCheck>,
 }
 
 /// Why the method cannot run with these options. The words are the library's; the
@@ -265,10 +291,59 @@ pub fn regularize(
     }
     let target_albedo = scene.media[m].albedo;
     let sigma_t = scene.media[m].sigma_t;
+    // One plain frame through OIDN: OIDN where it lowers the error (`fallback`); nothing
+    // of the sequence's machinery is needed.
+    let one_plain_frame = opts.frames == 1
+        && opts.oidn == OidnUse::Frames
+        && match opts.method {
+            Method::Radiance => true,
+            Method::Difference => opts.auto_factor.is_none() && opts.factor == 1.0,
+            _ => false,
+        };
+    if one_plain_frame {
+        let f = fallback::plain_or_oidn(scene, shot).map_err(RegularizeError::Denoise)?;
+        let zeros = Image {
+            pixels: vec![[0.0; 3]; f.plain.pixels.len()],
+            ..f.plain.clone()
+        };
+        return Ok(Regularized {
+            predicted: f.image,
+            source: f.plain,
+            raw_gradient: zeros.clone(),
+            blended: zeros.clone(),
+            gradient: zeros,
+            seen_emission: Some(f.seen_emission),
+            albedos: Albedos {
+                source: target_albedo,
+                target: target_albedo,
+                sigma_t,
+            },
+            c_beta: None,
+            fallbacks: 0,
+            mean_frames: 1.0,
+            frames_rendered: 1,
+            timings: Timings {
+                target_frame: f.render_seconds,
+                frames: f.render_seconds,
+                frame_denoise: f.denoise_seconds,
+                ..Default::default()
+            },
+            invalid_samples: f.invalid_samples,
+            pilot: None,
+            pilot_unaffordable: false,
+            oidn_check: f.check,
+        });
+    }
     // The first visible point of each pixel: the guides of the spatial filter and of
     // the exact reprojection (noise-free, one ray per pixel).
     let features = spatial::first_hit_features(scene, shot);
-    let pilot = opts.auto_factor.map(|size| {
+    // A pilot that would cost more than its share of the render is not run: plain
+    // volpath (factor 1) then, which never loses to itself.
+    let affordable = opts
+        .auto_factor
+        .and_then(|size| pilot::affordable(size, opts.frames, shot.spp));
+    let pilot_unaffordable = opts.auto_factor.is_some() && affordable.is_none();
+    let pilot = affordable.map(|size| {
         pilot::choose_factor(
             scene,
             shot,
@@ -281,9 +356,13 @@ pub fn regularize(
             size.spp,
         )
     });
-    let factor = pilot
-        .as_ref()
-        .map_or(Vec3::splat(opts.factor), |p| Vec3::from(p.factor));
+    let factor = match opts.method {
+        Method::Radiance => Vec3::ONE,
+        _ if pilot_unaffordable => Vec3::ONE,
+        _ => pilot
+            .as_ref()
+            .map_or(Vec3::splat(opts.factor), |p| Vec3::from(p.factor)),
+    };
     let albedos = Albedos {
         source: target_albedo * factor,
         target: target_albedo,
@@ -294,7 +373,7 @@ pub fn regularize(
         Method::Paper(CBeta::Fit { .. }) => None,
         Method::Linear => Some(Predictor::Linear),
         Method::LogLinear => Some(Predictor::LogLinear),
-        Method::Difference => Some(Predictor::Difference),
+        Method::Difference | Method::Radiance => Some(Predictor::Difference),
     };
     match predictor {
         Some(p) => p.validate(&albedos)?,
@@ -332,13 +411,21 @@ pub fn regularize(
             medium: opts.medium,
             target: albedos.target,
         },
+        Method::Radiance => Gradient::None,
         _ => Gradient::Albedo(opts.medium),
     };
-    let render_frame = |to_world, seed, albedo: Vec3, spp: Option<u32>| {
+    // At factor 1 the difference is 0: the frames are plain renders (`render`'s image,
+    // bit for bit), which is how the method falls back to plain volpath.
+    let plain = opts.method == Method::Radiance
+        || (opts.method == Method::Difference && albedos.source == albedos.target);
+    let gradient = if plain { Gradient::None } else { gradient };
+    let oidn = opts.oidn != OidnUse::None;
+    let render_frame = |to_world, seed, albedo: Vec3, spp: Option<u32>, seen_emission| {
         let mut frame = shot.with(spp.unwrap_or(shot.spp), seed);
         frame.camera.to_world = to_world;
         let options = RenderOptions {
             gradient,
+            seen_emission,
             ..Default::default()
         }
         .with_albedo(scene, opts.medium, albedo);
@@ -352,6 +439,7 @@ pub fn regularize(
     };
     let mut gradients: Vec<Image> = Vec::with_capacity(n);
     let mut source = None;
+    let mut seen_emission = None;
     let mut invalid_samples = 0;
     for k in (0..n).rev() {
         bar.set_message(format!("frame k = {k}"));
@@ -360,14 +448,57 @@ pub fn regularize(
             seed0.wrapping_add(k as u64),
             albedos.source,
             None,
+            oidn && (k == 0 || opts.oidn == OidnUse::Frames),
         );
         timings.frames += r.stats.seconds;
         invalid_samples += r.stats.invalid_samples;
+        let mut frame_gradient = match (opts.method, &r.gradient) {
+            (Method::Radiance, _) => r.image.clone(),
+            (_, Some(g)) => g.clone(),
+            (_, None) => Image {
+                pixels: vec![[0.0; 3]; r.image.pixels.len()],
+                ..r.image.clone()
+            },
+        };
+        // Charged to the frame (in a sequence each frame is denoised once).
+        let start = Instant::now();
+        let mut seen = r.seen_emission;
+        if let Some(seen) = &mut seen {
+            let mut frame_shot = shot.clone();
+            frame_shot.camera.to_world = frames[k];
+            aovs::sharpen_seen_emission(scene, &frame_shot, seen);
+        }
+        let mut frame_source = r.image;
+        if opts.oidn == OidnUse::Frames {
+            let failed = RegularizeError::Denoise;
+            match opts.method {
+                Method::Radiance => {
+                    frame_gradient =
+                        denoise::oidn(&frame_gradient, seen.as_ref(), None, AuxUse::None)
+                            .map_err(failed)?;
+                }
+                _ => {
+                    frame_gradient = denoise::oidn_signed(&frame_gradient, None, AuxUse::None)
+                        .map_err(failed)?;
+                    // The difference predictor adds R_s as it is: the target frame's
+                    // through the same denoiser (D1).
+                    if k == 0 && opts.method == Method::Difference {
+                        frame_source =
+                            denoise::oidn(&frame_source, seen.as_ref(), None, AuxUse::None)
+                                .map_err(failed)?;
+                    }
+                }
+            }
+        }
+        let spent = start.elapsed().as_secs_f64();
+        timings.frames += spent;
         if k == 0 {
             timings.target_frame = r.stats.seconds;
-            source = Some(r.image);
+            timings.frame_denoise = spent;
+            source = Some(frame_source);
+            seen_emission = seen;
         }
-        gradients.push(r.gradient.expect("a gradient was asked for"));
+        gradients.push(frame_gradient);
         bar.inc(1);
     }
     gradients.reverse();
@@ -400,19 +531,35 @@ pub fn regularize(
             .sum::<f64>()
             / (w * h) as f64;
     let frame_refs: Vec<&[[f32; 3]]> = gradients.iter().map(|g| g.pixels.as_slice()).collect();
-    let mut denoised = temporal::blend(&frame_refs, &maps, w, h, opts.w_a);
+    let blended = temporal::blend(&frame_refs, &maps, w, h, opts.w_a);
+    let mut denoised = blended.clone();
     if let Some(params) = &opts.spatial {
         denoised = spatial::denoise(&denoised, &source.pixels, &features, w, params);
     }
-    if opts.oidn {
-        let blended = Image {
-            width: w,
-            height: h,
-            pixels: denoised,
-        };
-        denoised = denoise::oidn_signed(&blended, None, AuxUse::default())
+    let as_image = |pixels| Image {
+        width: w,
+        height: h,
+        pixels,
+    };
+    match (opts.oidn, opts.method) {
+        (OidnUse::None | OidnUse::Frames, _) => {}
+        // The control's blended radiance is an image like any render's.
+        (OidnUse::Difference | OidnUse::Prediction, Method::Radiance) => {
+            denoised = denoise::oidn(
+                &as_image(denoised),
+                seen_emission.as_ref(),
+                None,
+                AuxUse::None,
+            )
             .map_err(RegularizeError::Denoise)?
             .pixels;
+        }
+        (OidnUse::Difference, _) => {
+            denoised = denoise::oidn_signed(&as_image(denoised), None, AuxUse::None)
+                .map_err(RegularizeError::Denoise)?
+                .pixels;
+        }
+        (OidnUse::Prediction, _) => {}
     }
     timings.denoise_and_predict = start.elapsed().as_secs_f64();
 
@@ -428,6 +575,7 @@ pub fn regularize(
                 seed0.wrapping_add(n as u64 + 1_000_003),
                 fit_albedo,
                 Some(spp),
+                false,
             );
             invalid_samples += cheap.stats.invalid_samples;
             let start = Instant::now();
@@ -443,15 +591,24 @@ pub fn regularize(
         (None, _) => unreachable!("only a fitted c_beta leaves the predictor open"),
     };
     let start = Instant::now();
-    let (predicted, fallbacks) = predictor.predict(&albedos, &source.pixels, &denoised);
+    let (mut predicted, fallbacks) = match opts.method {
+        Method::Radiance => (denoised.clone(), 0),
+        _ => predictor.predict(&albedos, &source.pixels, &denoised),
+    };
+    if opts.oidn == OidnUse::Prediction && opts.method != Method::Radiance {
+        predicted = denoise::oidn(
+            &as_image(predicted),
+            seen_emission.as_ref(),
+            None,
+            AuxUse::None,
+        )
+        .map_err(RegularizeError::Denoise)?
+        .pixels;
+    }
     timings.denoise_and_predict += start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
-    let image = |pixels| Image {
-        width: w,
-        height: h,
-        pixels,
-    };
+    let image = as_image;
     let c_beta = match predictor {
         Predictor::Paper { c_beta } => Some(c_beta),
         _ => None,
@@ -459,7 +616,9 @@ pub fn regularize(
     Ok(Regularized {
         predicted: image(predicted),
         raw_gradient: gradients.swap_remove(0),
+        blended: image(blended),
         gradient: image(denoised),
+        seen_emission,
         source,
         albedos,
         c_beta,
@@ -469,6 +628,8 @@ pub fn regularize(
         timings,
         invalid_samples,
         pilot,
+        pilot_unaffordable,
+        oidn_check: None,
     })
 }
 

@@ -173,7 +173,15 @@ fn sweep_point(
         },
         out: opts.base.out.join("images"),
         difference_factors: extra.difference_factors,
-        skip: extra.skip,
+        // The figures plot the paper's comparisons: one seed, one accounting, without
+        // the table's denoised baselines and control.
+        skip: extra
+            .skip
+            .into_iter()
+            .chain([Method::VolpathOidn, Method::VolpathFiltered])
+            .collect(),
+        seeds: 1,
+        still: false,
         ..opts.base.clone()
     };
     std::fs::create_dir_all(&table.out)?;
@@ -200,11 +208,8 @@ fn mse_series(points: &[Point], method: Method) -> Vec<(f64, f64)> {
 }
 
 const METHODS: [(Method, &str); 5] = [
-    (
-        Method::RegularizedAuto,
-        "regularized (difference, auto factor)",
-    ),
-    (Method::Regularized, "regularized (paper, temporal)"),
+    (Method::Regularized, "regularized (difference, auto factor)"),
+    (Method::RegularizedPaper, "regularized (paper, temporal)"),
     (Method::RegularizedSpatial, "regularized (paper, spatial)"),
     (Method::Volpath, "volpath (mediareg)"),
     (Method::MitsubaVolpath, "volpath (Mitsuba 3)"),
@@ -341,9 +346,7 @@ fn fig6(opts: &FigureOptions) -> Result<PathBuf> {
         notes.extend(run.notes);
         if let (Some(best_row), Some(auto)) = (
             best_fixed(&run.rows),
-            run.rows
-                .iter()
-                .find(|r| r.method == Method::RegularizedAuto),
+            run.rows.iter().find(|r| r.method == Method::Regularized),
         ) {
             notes.push(format!(
                 "sigma_t {s}: {}",
@@ -359,7 +362,7 @@ fn fig6(opts: &FigureOptions) -> Result<PathBuf> {
     let series = vec![
         Series::new(
             "regularized (difference, auto factor)",
-            mse_series(&points, Method::RegularizedAuto),
+            mse_series(&points, Method::Regularized),
         ),
         Series::dashed(
             "regularized (difference, best fixed factor: chosen with the reference)",
@@ -367,7 +370,7 @@ fn fig6(opts: &FigureOptions) -> Result<PathBuf> {
         ),
         Series::new(
             "regularized (paper, temporal)",
-            mse_series(&points, Method::Regularized),
+            mse_series(&points, Method::RegularizedPaper),
         ),
         Series::new(
             "regularized (paper, spatial)",
@@ -409,7 +412,7 @@ fn fig9(opts: &FigureOptions) -> Result<PathBuf> {
     for factor in [0.1f64, 0.2, 0.3, 0.5, 0.7, 0.8, 0.9, 0.93, 0.95, 0.97] {
         let extra = Extra {
             difference_factors: vec![factor as f32],
-            skip: vec![Method::RegularizedAuto],
+            skip: vec![Method::Regularized],
         };
         let tag = format!("fig9_factor{factor}");
         let run = sweep_point(
@@ -431,7 +434,7 @@ fn fig9(opts: &FigureOptions) -> Result<PathBuf> {
         difference_factors: Vec::new(),
         skip: vec![
             Method::Volpath,
-            Method::Regularized,
+            Method::RegularizedPaper,
             Method::RegularizedSpatial,
         ],
     };
@@ -448,7 +451,7 @@ fn fig9(opts: &FigureOptions) -> Result<PathBuf> {
     let auto = auto_run
         .rows
         .iter()
-        .find(|r| r.method == Method::RegularizedAuto)
+        .find(|r| r.method == Method::Regularized)
         .ok_or_else(|| anyhow!("fig9: the automatic row did not run"))?;
     if let Some(best_row) = best_fixed(points.iter().flat_map(|p| &p.rows)) {
         notes.push(auto_against_best(auto, best_row));
@@ -467,7 +470,7 @@ fn fig9(opts: &FigureOptions) -> Result<PathBuf> {
         ),
         Series::new(
             "regularized (paper, temporal)",
-            mse_series(&points, Method::Regularized),
+            mse_series(&points, Method::RegularizedPaper),
         ),
         Series::new(
             "regularized (paper, spatial)",

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::output::{paper_cells, ratio_cells, RunInfo};
+use super::output::{paper_cells, summaries_of, RunInfo, PAPER_HEADER};
 use super::table::{Method, Row};
 use crate::image;
 use crate::image::Image;
@@ -112,11 +112,12 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
     let abs = |p: &Path| std::fs::canonicalize(p).with_context(|| format!("{}", p.display()));
     let page_abs = abs(&page_dir)?;
     let table_abs = abs(table_dir)?;
-    let rows: Vec<Row> = serde_json::from_str(
-        &std::fs::read_to_string(table_dir.join("table1.json"))
+    let all: Vec<Row> = serde_json::from_str(
+        &std::fs::read_to_string(table_dir.join("table1_seeds.json"))
             .with_context(|| format!("no table in {}: run mediareg table", table_dir.display()))?,
     )
-    .context("table1.json")?;
+    .context("table1_seeds.json")?;
+    let rows = super::output::first_seed_rows(&all);
     let run: RunInfo = serde_json::from_str(&std::fs::read_to_string(table_dir.join("run.json"))?)
         .context("run.json")?;
 
@@ -138,26 +139,38 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
         run.threads
     )?;
 
-    // The table.
-    html.push_str("<h2>Table 1</h2>\n<table><tr><th>scene</th><th>method</th><th>spp</th><th>seconds</th><th>MSE</th><th>MSE corrected</th><th>÷ volpath</th><th>× time ÷ volpath</th></tr>\n");
-    for r in &rows {
-        let [raw, adjusted] = ratio_cells(&rows, r);
+    // The table: the summaries over seeds.
+    let summaries = summaries_of(&run, &all);
+    html.push_str("<h2>Table 1</h2>\n<table><tr><th>scene</th><th>method</th><th>accounting</th><th>spp</th><th>seconds</th><th>MSE corrected</th><th>÷ volpath [95% CI]</th><th>÷ best [95% CI]</th><th>best</th></tr>\n");
+    let interval = |x: Option<[f64; 3]>| {
+        x.map_or("–".to_string(), |[m, lo, hi]| {
+            format!("{m:.3} [{lo:.3}, {hi:.3}]")
+        })
+    };
+    for r in &summaries {
         writeln!(
             html,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.3e}</td><td>{:.3e}</td><td>{raw}</td><td>{adjusted}</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.0}</td><td>{:.2}</td><td>{:.3e}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             esc(&r.scene),
             r.method.as_str(),
+            r.accounting.as_str(),
             r.spp,
             r.seconds,
-            r.mse,
-            r.mse_corrected
+            r.mse_corrected,
+            interval(r.ratio_to_volpath),
+            interval(r.ratio_to_best),
+            r.best.map_or("–", |b| b.as_str())
         )?;
     }
-    html.push_str("</table>\n<table><tr><th>scene</th><th>paper: ours / PT</th><th>here: regularized / volpath (× time)</th><th>regularized_spatial / volpath (× time)</th><th>regularized_auto / volpath (× time)</th><th>mitsuba_volpath / volpath (× time)</th></tr>\n");
+    writeln!(
+        html,
+        "</table>\n<table><tr><th>{}</th></tr>",
+        PAPER_HEADER.map(esc).join("</th><th>")
+    )?;
     let mut scenes: Vec<&str> = rows.iter().map(|r| r.scene.as_str()).collect();
     scenes.dedup();
     for s in &scenes {
-        let cells = paper_cells(&rows, s);
+        let cells = paper_cells(&summaries, s);
         writeln!(
             html,
             "<tr><td>{}</td><td>{}</td></tr>",

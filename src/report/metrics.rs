@@ -47,6 +47,22 @@ pub fn mse_against(img: &Image, reference: &Image, reference_var: &Image) -> (f6
     (raw, raw - mean(reference_var))
 }
 
+/// The standard error of the correction (the reference's own variance, subtracted from
+/// every MSE), from the reference's per-value variances v_j estimated over its K chunks:
+/// Var((μ_j − r_j)² − v̂_j) ≈ 2 v_j² (1 + 1/(K − 1)) for Gaussian noise, so
+///
+///   SE(correction) ≈ √(Σ_j 2 v_j² (1 + 1/(K − 1))) / N,  N values.
+pub fn correction_se(var: &Image, chunks: u32) -> f64 {
+    let k = chunks.max(2) as f64;
+    let sum: f64 = var
+        .pixels
+        .iter()
+        .flatten()
+        .map(|&v| 2.0 * (v as f64).powi(2) * (1.0 + 1.0 / (k - 1.0)))
+        .sum();
+    sum.sqrt() / (var.pixels.len() * 3) as f64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -11,6 +11,12 @@ pub mod mitsuba;
 pub mod output;
 pub mod paper;
 pub mod plot;
+pub mod reference;
+pub mod row;
+pub mod summary;
 pub mod table;
 
-pub use table::{run_scene, run_table, Budget, Method, Row, SceneJob, TableOptions, TableRun};
+pub use summary::Summary;
+pub use table::{
+    run_scene, run_table, Accounting, Budget, Method, Row, SceneJob, TableOptions, TableRun,
+};

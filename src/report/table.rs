@@ -19,29 +19,29 @@
 //! subtracted (`metrics`). The reference must have been made from the very files and
 //! `-D` parameters of the run: their sha256 and parameters are checked against its JSON.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Context, Result};
-use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
-
 use glam::Vec3;
 
 use super::decompose::{self, Decomposition};
 use super::metrics::mse_against;
 use super::mitsuba::{MitsubaRunner, Unavailable};
 use super::paper::table1_row;
+pub use super::reference::{Reference, ReferenceMeta};
+pub use super::row::{Accounting, Method, Row};
+use crate::denoise::AuxUse;
 use crate::image::Image;
 use crate::integrator::volpath::Gradient;
-use crate::integrator::{render, RenderOptions};
+use crate::integrator::{render, RenderOptions, Rendered};
 use crate::load::build_scene;
 use crate::regularize::pilot::{self, Pilot};
 use crate::regularize::pipeline::PilotSize;
 use crate::regularize::sequence::{image_centre_point, CameraPath};
 use crate::regularize::spatial::BilateralParams;
 use crate::regularize::{self, CBeta, Reproject};
+use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene};
 use crate::{image, xml, BuildOverrides};
 
@@ -80,195 +80,34 @@ pub struct TableOptions {
     pub difference_factors: Vec<f32>,
     /// Methods not to run.
     pub skip: Vec<Method>,
+    /// The first seed; `seeds` seeds in all, far apart (each render adds its own offsets).
     pub seed: u64,
+    pub seeds: usize,
+    /// Also the `still` accounting: the baselines rendered again at the time of the whole
+    /// regularized sequence and its pilot.
+    pub still: bool,
+    /// Open Image Denoise is there: the `volpath_oidn` rows, and the regularized rows'
+    /// filter (`regularized_filter`).
+    pub oidn: bool,
     pub write_png: bool,
     /// One line per step on stderr.
     pub verbose: bool,
-}
-
-#[derive(Serialize, Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
-#[serde(rename_all = "snake_case")]
-pub enum Method {
-    Regularized,
-    RegularizedSpatial,
-    /// The difference predictor with the factor chosen by the pilot, temporal and
-    /// spatial filtering (what `mediareg regularize` does by default).
-    RegularizedAuto,
-    /// The same at a fixed factor (`TableOptions::difference_factors`).
-    RegularizedDifference,
-    Volpath,
-    MitsubaVolpath,
-}
-
-impl Method {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Method::Regularized => "regularized",
-            Method::RegularizedSpatial => "regularized_spatial",
-            Method::RegularizedAuto => "regularized_auto",
-            Method::RegularizedDifference => "regularized_difference",
-            Method::Volpath => "volpath",
-            Method::MitsubaVolpath => "mitsuba_volpath",
-        }
-    }
-}
-
-/// One row of `table1.json`.
-#[derive(Serialize, Deserialize, Clone, Debug)]
-pub struct Row {
-    pub scene: String,
-    pub method: Method,
-    /// Samples per pixel (per frame for `regularized`).
-    pub spp: u32,
-    /// The cost counted (one frame for `regularized`).
-    pub seconds: f64,
-    pub mse: f64,
-    pub mse_corrected: f64,
-    /// The image, relative to the JSON file.
-    pub image: String,
-    /// The reference, relative to the JSON file.
-    pub reference: String,
-    /// The regularized rows: the source factor α_s / α_t per channel.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub factor: Option<[f32; 3]>,
-    /// `regularized`: frames rendered, and the seconds of the whole sequence.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sequence_frames: Option<usize>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sequence_seconds: Option<f64>,
-}
-
-/// What a reference's JSON records (written by `scripts/mitsuba_reference.py`).
-#[derive(Deserialize, Clone, Debug)]
-pub struct ReferenceMeta {
-    pub mitsuba_version: String,
-    pub variant: String,
-    pub spp: u32,
-    pub chunks: u32,
-    pub seconds: f64,
-    #[serde(default)]
-    pub params: BTreeMap<String, String>,
-    pub width: usize,
-    pub height: usize,
-    /// The crop window `[x, y, w, h]` of the film the reference covers (`--crop`).
-    #[serde(default)]
-    pub crop: Option<[usize; 4]>,
-    pub sha256: BTreeMap<String, String>,
-}
-
-pub struct Reference {
-    pub path: PathBuf,
-    pub mean: Image,
-    pub var: Image,
-    pub meta: ReferenceMeta,
 }
 
 /// Everything a run produced.
 #[derive(Default)]
 pub struct TableRun {
     pub rows: Vec<Row>,
-    /// Per scene: the reference's spp, and the mean of its variance.
-    pub references: Vec<(String, ReferenceMeta, f64)>,
+    /// Per scene: the reference's spp, the mean of its variance, and the correction's
+    /// standard error (`metrics::correction_se`).
+    pub references: Vec<(String, ReferenceMeta, f64, f64)>,
     /// Things the reader must know (a method skipped, and why).
     pub notes: Vec<String>,
-    /// Per scene with a `regularized_auto` row: where its gain goes.
+    /// Per scene and method: the seconds a 1-spp run of its pipeline spends beside the
+    /// frames' rendering (measured at the first seed, reused by the others).
+    pub overheads: Vec<(String, Method, f64)>,
+    /// Per scene with a `regularized` row: where its gain goes.
     pub decomposition: Vec<Decomposition>,
-}
-
-fn sha256_file(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    Ok(format!("{:x}", Sha256::digest(&bytes)))
-}
-
-fn remake_hint(name: &str, xml: &Path, params: &[(String, String)], dir: &Path) -> String {
-    let defines: String = params.iter().map(|(k, v)| format!(" -D {k}={v}")).collect();
-    format!(
-        "make it with: .venv/bin/python scripts/mitsuba_reference.py {} --spp 4096 --chunks 16 -a .cache/meshes{defines} --out {} --name {name}",
-        xml.display(),
-        dir.display()
-    )
-}
-
-impl Reference {
-    /// Loads `dir/NAME.exr`, `NAME_var.exr` and `NAME.json`, and checks that the
-    /// reference was made from the files `desc` reads (sha256 of the scene, its includes
-    /// and assets) and the `-D` parameters it was loaded with (`load`).
-    pub fn load(
-        dir: &Path,
-        name: &str,
-        xml_path: &Path,
-        load: &xml::LoadOptions,
-        desc: &xml::SceneDescription,
-    ) -> Result<Reference> {
-        let hint = || remake_hint(name, xml_path, &load.params, dir);
-        let json_path = dir.join(format!("{name}.json"));
-        let text = std::fs::read_to_string(&json_path).map_err(|e| {
-            anyhow!(
-                "no Mitsuba 3 reference for {name}: {}: {e}; {}",
-                json_path.display(),
-                hint()
-            )
-        })?;
-        let meta: ReferenceMeta = serde_json::from_str(&text)
-            .with_context(|| format!("{}: not a reference description", json_path.display()))?;
-        let given: BTreeMap<String, String> = load.params.iter().cloned().collect();
-        if given != meta.params {
-            bail!(
-                "{} was made with -D {:?}, this run has -D {:?}: MSEs would compare different scenes; {}",
-                json_path.display(),
-                meta.params,
-                given,
-                hint()
-            );
-        }
-        let mut seen = Vec::new();
-        for f in desc.referenced_files() {
-            let base = f
-                .file_name()
-                .map(|b| b.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            match meta.sha256.get(&base) {
-                Some(want) if *want == sha256_file(&f)? => seen.push(base),
-                Some(_) => bail!(
-                    "{} changed since {} was made: the reference is stale; {}",
-                    f.display(),
-                    json_path.display(),
-                    hint()
-                ),
-                None => bail!(
-                    "{} does not record {base}, which the scene reads: the reference is stale; {}",
-                    json_path.display(),
-                    hint()
-                ),
-            }
-        }
-        if let Some(k) = meta.sha256.keys().find(|k| !seen.contains(k)) {
-            bail!(
-                "{} records {k}, which the scene no longer reads: the reference is stale; {}",
-                json_path.display(),
-                hint()
-            );
-        }
-        let path = dir.join(format!("{name}.exr"));
-        let mean = image::read_exr(&path)?;
-        let var = image::read_exr(&dir.join(format!("{name}_var.exr")))?;
-        if (mean.width, mean.height) != (meta.width, meta.height)
-            || (var.width, var.height) != (meta.width, meta.height)
-        {
-            bail!(
-                "{}: its images are not {}x{} as its JSON says",
-                dir.display(),
-                meta.width,
-                meta.height
-            );
-        }
-        Ok(Reference {
-            path,
-            mean,
-            var,
-            meta,
-        })
-    }
 }
 
 fn scene_file(opts: &TableOptions, scene: &str) -> PathBuf {
@@ -331,7 +170,7 @@ pub fn sequence_options(
         path,
         reproject: Reproject::Exact,
         spatial: None,
-        oidn: false,
+        oidn: regularize::OidnUse::None,
         method: regularize::Method::Paper(CBeta::Fixed(opts.c_beta)),
         auto_factor: None,
         show_progress: false,
@@ -389,9 +228,21 @@ pub fn run_table(opts: &TableOptions) -> Result<TableRun> {
         .with_context(|| format!("cannot create {}", opts.out.display()))?;
     let mut run = TableRun::default();
     for name in &opts.scenes {
-        run_scene(&SceneJob::named(name), opts, &mut run)?;
+        for i in 0..opts.seeds.max(1) {
+            let seeded = TableOptions {
+                seed: seed_of(opts.seed, i),
+                ..opts.clone()
+            };
+            run_scene(&SceneJob::named(name), &seeded, &mut run)?;
+        }
     }
     Ok(run)
+}
+
+/// The i-th seed of a run: far enough apart that no two seeds' renders share a stream
+/// (a render adds offsets up to a few million to its seed, a sequence its frame index).
+pub fn seed_of(first: u64, i: usize) -> u64 {
+    first.wrapping_add(i as u64 * 10_000_019)
 }
 
 /// One scene of a run: `SCENE_DIR/scene.xml` against `REFERENCE_DIR/reference.exr`,
@@ -433,13 +284,17 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         .unwrap_or(0.95);
     let ref_rel = relative_to(&reference.path, &opts.out);
     let ref_var_mean = super::metrics::mean(&reference.var);
-    run.references
-        .push((name.to_string(), reference.meta.clone(), ref_var_mean));
+    let first_seed = !run.references.iter().any(|(n, ..)| n == name);
+    if first_seed {
+        let se = super::metrics::correction_se(&reference.var, reference.meta.chunks);
+        run.references
+            .push((name.to_string(), reference.meta.clone(), ref_var_mean, se));
+    }
     log(format!(
         "reference: Mitsuba {} {}, {} spp; mean variance {:.3e}",
         reference.meta.mitsuba_version, reference.meta.variant, reference.meta.spp, ref_var_mean
     ));
-    if opts.write_png {
+    if opts.write_png && first_seed {
         image::write_png(
             &opts.out.join(format!("{tag}_reference.png")),
             &reference.mean,
@@ -447,6 +302,11 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
     }
 
     let seed = opts.seed;
+    // The first seed's images keep the plain names (the report shows them).
+    let suffix = match first_seed {
+        true => String::new(),
+        false => format!("_seed{seed}"),
+    };
     let calibrate = |options: &RenderOptions| -> Option<f64> {
         match opts.budget {
             Budget::Seconds(b) => Some(seconds_per_spp(
@@ -459,19 +319,24 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         }
     };
     let mut push = |method: Method,
+                    accounting: Accounting,
                     factor: Option<[f32; 3]>,
                     img: &Image,
                     spp: u32,
                     seconds: f64,
-                    sequence: Option<(usize, f64)>|
+                    sequence: Option<(usize, f64)>,
+                    still_seconds: Option<f64>|
      -> Result<f64> {
-        let name_of = match (method, factor) {
+        let mut name_of = match (method, factor) {
             (Method::RegularizedDifference, Some(f)) => {
                 format!("{}_factor{}", method.as_str(), f[0])
             }
             _ => method.as_str().to_string(),
         };
-        let file = opts.out.join(format!("{tag}_{name_of}.exr"));
+        if accounting == Accounting::Still {
+            name_of += "_still";
+        }
+        let file = opts.out.join(format!("{tag}_{name_of}{suffix}.exr"));
         image::write_exr(&file, img)?;
         if opts.write_png {
             image::write_png(&file.with_extension("png"), img)?;
@@ -483,6 +348,8 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         run.rows.push(Row {
             scene: name.to_string(),
             method,
+            accounting,
+            seed,
             spp,
             seconds,
             mse,
@@ -493,24 +360,70 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             sequence_frames: sequence.map(|s| s.0),
             sequence_seconds: sequence.map(|s| s.1),
         });
+        if let Some(seconds) = still_seconds {
+            // The same image, every frame and the whole pilot charged.
+            let mut row = run.rows.last().expect("just pushed").clone();
+            row.accounting = Accounting::Still;
+            row.seconds = seconds;
+            run.rows.push(row);
+        }
         Ok(mse_corrected)
     };
 
-    // Plain volpath at the target albedo.
-    if !opts.skip.contains(&Method::Volpath) {
-        let spp = match calibrate(&RenderOptions::default()) {
+    let skip = |m: Method| opts.skip.contains(&m);
+    let with_seen = RenderOptions {
+        seen_emission: true,
+        ..Default::default()
+    };
+    let volpath_per_spp = calibrate(&RenderOptions::default());
+    // Plain volpath at the target albedo, then through OIDN (its time, measured on a
+    // 1-spp render, comes out of the budget).
+    if !skip(Method::Volpath) {
+        let spp = match volpath_per_spp {
             Some(per_spp) => spp_for(budget_seconds(opts.budget), per_spp),
             None => budget_spp(opts.budget),
         };
-        let r = render(
-            &scene,
-            &scene.shot.with(spp, seed),
-            &RenderOptions::default(),
-        );
-        push(Method::Volpath, None, &r.image, spp, r.stats.seconds, None)?;
+        let r = render(&scene, &scene.shot.with(spp, seed), &with_seen);
+        push(
+            Method::Volpath,
+            Accounting::Frame,
+            None,
+            &r.image,
+            spp,
+            r.stats.seconds,
+            None,
+            None,
+        )?;
+    }
+    let oidn_seconds = match opts.oidn && !skip(Method::VolpathOidn) {
+        true => {
+            let shot = scene.shot.with(1, seed.wrapping_add(3_000_000));
+            let probe = render(&scene, &shot, &with_seen);
+            Some(volpath_oidn(&scene, &shot, &probe)?.1)
+        }
+        false => None,
+    };
+    if let Some(t_oidn) = oidn_seconds {
+        let spp = match volpath_per_spp {
+            Some(per_spp) => spp_for(budget_seconds(opts.budget) - t_oidn, per_spp),
+            None => budget_spp(opts.budget),
+        };
+        let shot = scene.shot.with(spp, seed.wrapping_add(10));
+        let r = render(&scene, &shot, &with_seen);
+        let (img, t) = volpath_oidn(&scene, &shot, &r)?;
+        push(
+            Method::VolpathOidn,
+            Accounting::Frame,
+            None,
+            &img,
+            spp,
+            r.stats.seconds + t,
+            None,
+            None,
+        )?;
     }
 
-    // The regularized method: temporal (the paper), then single-frame spatial.
+    // The sequences: the paper's predictor, the default, the control.
     let path = orbit_about_centre(opts, &scene).unwrap_or_else(|| {
         run.notes.push(format!(
             "{name}: the image centre sees no surface, so the regularized sequence keeps the camera still (frames differ only in noise)"
@@ -524,20 +437,26 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         spatial: Some(BilateralParams::default()),
         ..temporal.clone()
     };
-    let auto = regularize::Options {
-        method: regularize::Method::Difference,
-        auto_factor: Some(PilotSize::default()),
-        spatial: Some(BilateralParams::default()),
-        ..temporal.clone()
+    let auto = default_options(opts, &temporal);
+    let control = regularize::Options {
+        method: regularize::Method::Radiance,
+        auto_factor: None,
+        ..auto.clone()
     };
     // Its frames render at the source albedo (shorter paths): calibrate there.
     let target_albedo = scene.media[medium as usize].albedo;
-    let at_source = RenderOptions {
-        gradient: Gradient::Albedo(medium),
-        ..Default::default()
-    }
-    .with_albedo(&scene, medium, target_albedo * factor);
-    let per_spp_gradient = calibrate(&at_source);
+    let at_source = |factor: f32| {
+        RenderOptions {
+            gradient: Gradient::Albedo(medium),
+            ..Default::default()
+        }
+        .with_albedo(&scene, medium, target_albedo * factor)
+    };
+    let per_spp_gradient = calibrate(&at_source(factor));
+    let per_spp_default = match auto.auto_factor {
+        Some(_) => per_spp_gradient,
+        None => calibrate(&at_source(auto.factor)),
+    };
     let fixed: Vec<regularize::Options> = opts
         .difference_factors
         .iter()
@@ -548,30 +467,56 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         })
         .collect();
     let runs = [
-        (Method::Regularized, &temporal, 100u64),
-        (Method::RegularizedSpatial, &spatial, 200u64),
-        (Method::RegularizedAuto, &auto, 300u64),
+        (
+            Method::RegularizedPaper,
+            &temporal,
+            100u64,
+            per_spp_gradient,
+        ),
+        (
+            Method::RegularizedSpatial,
+            &spatial,
+            200u64,
+            per_spp_gradient,
+        ),
+        (Method::Regularized, &auto, 300u64, per_spp_default),
+        (Method::VolpathFiltered, &control, 500u64, volpath_per_spp),
     ]
     .into_iter()
-    .chain(
-        fixed
-            .iter()
-            .enumerate()
-            .map(|(i, o)| (Method::RegularizedDifference, o, 400 + i as u64)),
-    )
-    .filter(|(method, ..)| !opts.skip.contains(method));
-    for (method, ropts, seed_offset) in runs {
-        let spp = match per_spp_gradient {
+    .chain(fixed.iter().enumerate().map(|(i, o)| {
+        (
+            Method::RegularizedDifference,
+            o,
+            400 + i as u64,
+            per_spp_gradient,
+        )
+    }))
+    .filter(|(method, ..)| !skip(*method));
+    let mut still_seconds = None;
+    for (method, ropts, seed_offset, per_spp) in runs {
+        let spp = match per_spp {
             Some(per_spp) => {
                 // The denoising and prediction cost comes out of the frame's budget:
                 // measured on a 1-spp run of the same pipeline.
-                let probe_shot = scene.shot.with(1, seed.wrapping_add(2_000_000));
-                let probe = regularize::regularize(&scene, &probe_shot, ropts)
-                    .map_err(|e| anyhow!("{e}"))?;
-                let left = budget_seconds(opts.budget)
-                    - probe.timings.denoise_and_predict
-                    - probe.timings.pilot / probe.frames_rendered as f64;
-                spp_for(left, per_spp)
+                let known = run
+                    .overheads
+                    .iter()
+                    .find(|(n, m, _)| n == name && *m == method)
+                    .map(|o| o.2);
+                let overhead = match known {
+                    Some(o) => o,
+                    None => {
+                        let probe_shot = scene.shot.with(1, seed.wrapping_add(2_000_000));
+                        let probe = regularize::regularize(&scene, &probe_shot, ropts)
+                            .map_err(|e| anyhow!("{e}"))?;
+                        let o = probe.timings.denoise_and_predict
+                            + probe.timings.frame_denoise
+                            + probe.timings.pilot / probe.frames_rendered as f64;
+                        run.overheads.push((name.to_string(), method, o));
+                        o
+                    }
+                };
+                spp_for(budget_seconds(opts.budget) - overhead, per_spp)
             }
             None => budget_spp(opts.budget),
         };
@@ -581,7 +526,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         let sequence_seconds = started.elapsed().as_secs_f64();
         if let Some(p) = &r.pilot {
             run.notes.push(format!(
-                "{name} {}: the pilot chose the factors {:?} (R, G, B) in {:.1} s",
+                "{name} seed {seed} {}: the pilot chose the factors {:?} (R, G, B) in {:.1} s",
                 method.as_str(),
                 p.factor,
                 p.seconds
@@ -589,7 +534,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         }
         if r.fallbacks > 0 {
             run.notes.push(format!(
-                "{name} {}: {} channel values could not be predicted and keep the source radiance",
+                "{name} seed {seed} {}: {} channel values could not be predicted and keep the source radiance",
                 method.as_str(),
                 r.fallbacks
             ));
@@ -597,20 +542,68 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
         // One frame of the sequence, and the pilot's share of it (a pilot serves the
         // whole sequence).
         let seconds = r.timings.target_frame
+            + r.timings.frame_denoise
             + r.timings.denoise_and_predict
             + r.timings.pilot / r.frames_rendered as f64;
-        let sequence =
-            (method != Method::RegularizedSpatial).then_some((r.frames_rendered, sequence_seconds));
-        let (source, target) = (r.albedos.source.to_array(), r.albedos.target.to_array());
-        let factor = [0, 1, 2].map(|c| match target[c] > 0.0 {
-            true => source[c] / target[c],
-            false => 1.0,
+        let is_sequence = method != Method::RegularizedSpatial;
+        let sequence = is_sequence.then_some((r.frames_rendered, sequence_seconds));
+        let factor = (method != Method::VolpathFiltered).then(|| {
+            let (source, target) = (r.albedos.source.to_array(), r.albedos.target.to_array());
+            [0, 1, 2].map(|c| match target[c] > 0.0 {
+                true => source[c] / target[c],
+                false => 1.0,
+            })
         });
-        let mse_corrected = push(method, Some(factor), &r.predicted, spp, seconds, sequence)?;
-        if let (Method::RegularizedAuto, Some(pilot)) = (method, &r.pilot) {
+        let mse_corrected = push(
+            method,
+            Accounting::Frame,
+            factor,
+            &r.predicted,
+            spp,
+            seconds,
+            sequence,
+            (opts.still && is_sequence).then_some(sequence_seconds),
+        )?;
+        if method == Method::Regularized {
+            still_seconds = Some(sequence_seconds);
+        }
+        if let (Method::Regularized, Some(pilot), true) = (method, &r.pilot, first_seed) {
             let decomposition =
                 decompose_scene(&scene, name, medium, ropts, pilot, spp, mse_corrected);
             run.decomposition.push(decomposition);
+        }
+    }
+
+    // The baselines at the time of the whole default sequence: one render serves plain
+    // volpath and, with OIDN's time charged on top (a few percent of it), volpath_oidn.
+    if let (true, Some(total), Some(per_spp)) = (opts.still, still_seconds, volpath_per_spp) {
+        let spp = spp_for(total - oidn_seconds.unwrap_or(0.0), per_spp);
+        let shot = scene.shot.with(spp, seed.wrapping_add(20));
+        let r = render(&scene, &shot, &with_seen);
+        if !skip(Method::Volpath) {
+            push(
+                Method::Volpath,
+                Accounting::Still,
+                None,
+                &r.image,
+                spp,
+                r.stats.seconds,
+                None,
+                None,
+            )?;
+        }
+        if oidn_seconds.is_some() {
+            let (img, t) = volpath_oidn(&scene, &shot, &r)?;
+            push(
+                Method::VolpathOidn,
+                Accounting::Still,
+                None,
+                &img,
+                spp,
+                r.stats.seconds + t,
+                None,
+                None,
+            )?;
         }
     }
 
@@ -620,7 +613,7 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             .notes
             .push(format!("{name}: Mitsuba 3 not run (--no-mitsuba)")),
         Some(runner) => {
-            let file = opts.out.join(format!("{tag}_mitsuba_volpath.exr"));
+            let file = opts.out.join(format!("{tag}_mitsuba_volpath{suffix}.exr"));
             let (spp, budget) = match opts.budget {
                 Budget::Seconds(b) => (None, Some(b)),
                 Budget::Spp(n) => (Some(n), None),
@@ -648,6 +641,8 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
                     run.rows.push(Row {
                         scene: name.to_string(),
                         method: Method::MitsubaVolpath,
+                        accounting: Accounting::Frame,
+                        seed,
                         spp: m.spp,
                         seconds: m.seconds,
                         mse,
@@ -710,6 +705,35 @@ fn decompose_scene(
         predicted_variance,
         mse_corrected,
         bias2: mse_corrected - predicted_variance,
+    }
+}
+
+/// `render --denoise oidn` on a render of `shot`: the image and the seconds it took.
+fn volpath_oidn(scene: &Scene, shot: &Shot, r: &Rendered) -> Result<(Image, f64)> {
+    let started = Instant::now();
+    let img = crate::integrator::denoised::oidn(scene, shot, r, AuxUse::None, None)
+        .map_err(|e| anyhow!("--denoise oidn: {e}"))?;
+    Ok((img, started.elapsed().as_secs_f64()))
+}
+
+/// What `mediareg regularize` does by default for this sequence (`choices::options`):
+/// with OIDN, the difference at `DEFAULT_FACTOR` with every frame denoised; without, the
+/// factor from the pilot, the bilateral filter.
+pub fn default_options(opts: &TableOptions, sequence: &regularize::Options) -> regularize::Options {
+    let (auto_factor, factor) = match opts.oidn {
+        true => (None, regularize::choices::DEFAULT_FACTOR),
+        false => (Some(PilotSize::default()), 0.95),
+    };
+    regularize::Options {
+        method: regularize::Method::Difference,
+        auto_factor,
+        factor,
+        spatial: (!opts.oidn).then(BilateralParams::default),
+        oidn: match opts.oidn {
+            true => regularize::OidnUse::Frames,
+            false => regularize::OidnUse::None,
+        },
+        ..sequence.clone()
     }
 }
 

@@ -10,7 +10,7 @@ use glam::Vec3;
 pub use mediareg::image::sibling;
 use mediareg::regularize::RegularizeError;
 use mediareg::report::mitsuba::MitsubaRunner;
-use mediareg::report::{Budget, TableOptions};
+use mediareg::report::{Budget, Method, TableOptions};
 use mediareg::scene::{MediumChoiceError, Scene};
 use mediareg::{image, load_scene, xml, BuildOverrides};
 
@@ -109,6 +109,16 @@ pub struct TableArgs {
     pub no_mitsuba: bool,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Seeds per scene (each ratio gets its confidence interval over them).
+    #[arg(long, default_value_t = 4)]
+    pub seeds: usize,
+    /// Only the `frame` accounting (no baselines at the whole sequence's time).
+    #[arg(long)]
+    pub no_still: bool,
+    /// No Open Image Denoise: no volpath_oidn rows, the bilateral filter in the
+    /// regularized rows (default: used when the library loads).
+    #[arg(long)]
+    pub no_oidn: bool,
     /// Number of render threads (default: all cores).
     #[arg(short = 't', long = "threads")]
     pub threads: Option<usize>,
@@ -224,6 +234,9 @@ pub fn table_options(args: TableArgs, default_out: &str) -> Result<TableOptions>
         python,
         no_mitsuba,
         seed,
+        seeds,
+        no_still,
+        no_oidn,
         threads,
         no_png,
     } = args;
@@ -258,8 +271,11 @@ pub fn table_options(args: TableArgs, default_out: &str) -> Result<TableOptions>
         factor,
         mitsuba,
         difference_factors: Vec::new(),
-        skip: Vec::new(),
+        skip: vec![Method::RegularizedSpatial],
         seed,
+        seeds,
+        still: !no_still,
+        oidn: !no_oidn && mediareg::denoise::oidn::load().is_ok(),
         write_png: !no_png,
         verbose: true,
     })

@@ -9,9 +9,7 @@ use clap::Args;
 use mediareg::image::{self, Image};
 use mediareg::regularize::pipeline::PilotSize;
 use mediareg::regularize::sequence::CameraPath;
-use mediareg::regularize::{self, ChoiceError, Choices, Method, Motion, Reproject};
-
-use crate::render::DenoiseArg;
+use mediareg::regularize::{self, ChoiceError, Choices, Method, Motion, OidnUse, Reproject};
 
 use crate::common::{
     fmt3, medium_error, parse_point, prepare, regularize_error, sibling, warn_invalid_samples,
@@ -79,14 +77,21 @@ pub struct RegularizeArgs {
     /// Filter the gradient over frames only (the default with the paper's predictors).
     #[arg(long)]
     pub no_spatial: bool,
-    /// Filter the blended difference (or gradient) with a denoiser instead of the
-    /// bilateral filter: `oidn` (Intel Open Image Denoise; R_s stays as rendered).
-    /// Needs the library: scripts/fetch_oidn.
-    #[arg(long, value_enum, value_name = "DENOISER", conflicts_with = "spatial")]
-    pub denoise: Option<DenoiseArg>,
+    /// The difference's filter: `oidn` (Intel Open Image Denoise on every frame's
+    /// difference and the target frame's R_s; needs the library: scripts/fetch_oidn) or
+    /// `bilateral` (the joint bilateral filter after the blend). Default: oidn with the
+    /// difference predictor when the library is there, else bilateral.
+    #[arg(long, value_enum, value_name = "FILTER", conflicts_with = "spatial")]
+    pub denoise: Option<FilterArg>,
     /// The prediction function.
     #[arg(long, value_enum, default_value = "difference")]
     pub predict: PredictArg,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FilterArg {
+    Oidn,
+    Bilateral,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -103,6 +108,9 @@ pub enum PredictArg {
     Loglinear,
     /// R_s + the denoised difference R(α_t) − R(α_s) rendered in the same paths
     Difference,
+    /// No extrapolation: plain volpath frames at the scene's albedo through the same
+    /// reprojection, blend and filter (the table's `volpath_filtered`)
+    Plain,
 }
 
 pub fn run(cmd: RegularizeArgs) -> Result<()> {
@@ -127,7 +135,7 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
         pilot_renders,
         pilot_spp,
     } = cmd;
-    if denoise.is_some() {
+    if denoise == Some(FilterArg::Oidn) {
         mediareg::denoise::oidn::load().map_err(|e| anyhow!("--denoise oidn: {e}"))?;
     }
     let (scene_data, out_exr) = prepare(&args)?;
@@ -138,6 +146,7 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
         PredictArg::Linear => Method::Linear,
         PredictArg::Loglinear => Method::LogLinear,
         PredictArg::Difference => Method::Difference,
+        PredictArg::Plain => Method::Radiance,
     };
     let motion = match (orbit, dolly, camera_path) {
         (Some(degrees), _, _) => Motion::Orbit {
@@ -180,7 +189,11 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
             (_, true) => Some(false),
             _ => None,
         },
-        oidn: denoise.is_some(),
+        oidn: match (denoise, spatial) {
+            (Some(f), _) => Some(f == FilterArg::Oidn),
+            (None, true) => Some(false),
+            (None, false) => None,
+        },
         show_progress: std::io::stderr().is_terminal(),
     };
     let (opts, shot) = regularize::choices::options(&scene_data, &scene_data.shot, &choices)
@@ -234,6 +247,37 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
             costs.join(", ")
         );
     }
+    if let Some(c) = &r.oidn_check {
+        println!(
+            "one frame: plain volpath{} (OIDN's squared error {:.3e} ± {:.1e} against plain volpath's variance {:.3e}, measured with 2 × {} of the {} spp)",
+            match c.chose_oidn {
+                true => " through OIDN",
+                false => ", not denoised",
+            },
+            c.oidn_error,
+            c.oidn_error_se,
+            c.plain_variance,
+            c.spp_each,
+            shot.spp
+        );
+    }
+    if r.pilot_unaffordable {
+        println!(
+            "factor 1 (plain volpath): the pilot would cost more than {:.0}% of the render ({} frames of {} spp)",
+            100.0 * mediareg::regularize::pilot::MAX_SHARE,
+            r.frames_rendered,
+            shot.spp
+        );
+    }
+    println!(
+        "filter: {}",
+        match (opts.oidn, &opts.spatial) {
+            _ if r.oidn_check.is_some() => "see above (one plain frame)",
+            (OidnUse::None, Some(_)) => "joint bilateral after the blend",
+            (OidnUse::None, None) => "the blend over frames only",
+            _ => "Open Image Denoise on every frame (and R_s)",
+        }
+    );
     let a = &r.albedos;
     let t = &r.timings;
     println!(

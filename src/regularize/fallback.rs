@@ -1,0 +1,182 @@
+//! One frame of plain volpath through Open Image Denoise, or not: what the method falls
+//! back to for a single frame when OIDN is there. Plain volpath is then the only
+//! estimator (the split R_s + D is plain volpath's estimate on every path), and the one
+//! question is whether OIDN lowers its error. A denoiser can raise it (measured: a camera
+//! inside a medium, a furnace, a converged image), so it is checked without a reference.
+//! The frame is rendered as M (N − 2p spp) and two small independent renders A and B
+//! (p spp each), all three the plain image's samples. For X = A or B, independent of M
+//! and unbiased, E (O − X)² − E (M − X)² = MSE(O) − Var(M) for O = OIDN(M): X's own
+//! variance cancels, so
+//!
+//!   Δ = mean ½ Σ_{X = A, B} [(O − X)² − (M − X)²]  ≈  MSE(OIDN(M)) − Var(M)       (F1)
+//!
+//! whose noise per value is about √(Var(M) Var(A)), far below Var(A). With Var(M) from
+//! Var(A) ≈ ½ mean (A − B)² (F2) scaled by p / (N − 2p), OIDN is used where its error on
+//! M is at most plain volpath's variance with all N spp:
+//!
+//!   Δ + Var(M) ≤ Var(M) (N − 2p) / N,                                              (F3)
+//!
+//! and then on all N spp (one OIDN run more than plain + OIDN; more samples only lower
+//! its error); otherwise the image is plain volpath. The rule takes no margin: a wrong
+//! choice happens where the two errors are within the estimate's noise of each other,
+//! which is where it costs little. Δ's standard error (over 8×8-pixel blocks, as OIDN's
+//! output is correlated between neighbouring pixels) is reported beside it.
+
+use std::time::Instant;
+
+use crate::denoise::{self, AuxUse, OidnError};
+use crate::image::Image;
+use crate::integrator::{aovs, render, RenderOptions, Rendered};
+use crate::scene::shot::Shot;
+use crate::scene::Scene;
+
+/// The share of a render's samples A and B take together.
+pub const CHECK_SHARE: f64 = 0.1;
+
+/// What the check measured (per value: pixels × channels).
+#[derive(Clone, Debug)]
+pub struct OidnCheck {
+    /// p: each of A and B.
+    pub spp_each: u32,
+    /// Plain volpath's variance at N spp, from (F2).
+    pub plain_variance: f64,
+    /// Δ + Var(M) (F1): OIDN's squared error on M, and its standard error.
+    pub oidn_error: f64,
+    pub oidn_error_se: f64,
+    pub chose_oidn: bool,
+}
+
+pub struct Fallback {
+    /// The image: OIDN where the check said so, else plain volpath (all N spp).
+    pub image: Image,
+    /// Plain volpath's image (all N spp).
+    pub plain: Image,
+    /// The directly seen emission, sharpened (`aovs`).
+    pub seen_emission: Image,
+    pub check: Option<OidnCheck>,
+    /// Rendering (all N spp).
+    pub render_seconds: f64,
+    /// Sharpening, OIDN and the check.
+    pub denoise_seconds: f64,
+    pub invalid_samples: u64,
+}
+
+/// The weighted mean of images (weights summing to 1).
+fn blend(parts: &[(&Image, f64)]) -> Image {
+    let mut out = parts[0].0.clone();
+    for (i, p) in out.pixels.iter_mut().enumerate() {
+        *p = std::array::from_fn(|c| {
+            parts
+                .iter()
+                .map(|(img, w)| img.pixels[i][c] as f64 * w)
+                .sum::<f64>() as f32
+        });
+    }
+    out
+}
+
+fn seen(r: &Rendered) -> &Image {
+    r.seen_emission.as_ref().expect("asked for")
+}
+
+/// The side of the pixel blocks Δ's standard error is taken over: OIDN's output is
+/// correlated between nearby pixels, so values are not independent, blocks nearly are.
+const BLOCK: usize = 8;
+
+/// (F2) Var(A), and (F1) Δ with its standard error (over blocks).
+fn measure(o: &Image, m: &Image, a: &Image, b: &Image) -> (f64, f64, f64) {
+    let (w, h) = (o.width, o.height);
+    let (bw, bh) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
+    let mut blocks = vec![0.0f64; bw * bh];
+    let mut var_sum = 0.0;
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            for c in 0..3 {
+                let [o, m, a, b] = [o, m, a, b].map(|img| img.pixels[i][c] as f64);
+                var_sum += 0.5 * (a - b).powi(2);
+                blocks[(y / BLOCK) * bw + x / BLOCK] +=
+                    0.5 * ((o - a).powi(2) - (m - a).powi(2) + (o - b).powi(2) - (m - b).powi(2));
+            }
+        }
+    }
+    let n = (w * h * 3) as f64;
+    let k = blocks.len() as f64;
+    // Δ = Σ blocks / n; its variance is k · Var(block sum) / n².
+    let mean_block = blocks.iter().sum::<f64>() / k;
+    let var_block =
+        blocks.iter().map(|s| (s - mean_block).powi(2)).sum::<f64>() / (k - 1.0).max(1.0);
+    (var_sum / n, mean_block * k / n, (k * var_block).sqrt() / n)
+}
+
+/// `shot` (N = `shot.spp`) rendered plain and through OIDN where (F3) holds. Below
+/// 2 / `CHECK_SHARE` spp there is no check: OIDN is used (at a few spp it is by far the
+/// better, docs/denoise.md).
+pub fn plain_or_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> {
+    let n = shot.spp;
+    let options = RenderOptions {
+        seen_emission: true,
+        ..Default::default()
+    };
+    let p = (CHECK_SHARE / 2.0 * n as f64).floor() as u32;
+    let sharpened = |mut e: Image| {
+        aovs::sharpen_seen_emission(scene, shot, &mut e);
+        e
+    };
+    if p == 0 {
+        let r = render(scene, shot, &options);
+        let started = Instant::now();
+        let e = sharpened(seen(&r).clone());
+        let image = denoise::oidn(&r.image, Some(&e), None, AuxUse::None)?;
+        return Ok(Fallback {
+            image,
+            plain: r.image,
+            seen_emission: e,
+            check: None,
+            render_seconds: r.stats.seconds,
+            denoise_seconds: started.elapsed().as_secs_f64(),
+            invalid_samples: r.stats.invalid_samples,
+        });
+    }
+    // Seeds far from the shot's (and within the 32 bits a seed has, as in Mitsuba).
+    let other = |k: u64| (shot.seed + k * 0x6a09_e667) & 0xffff_ffff;
+    let a = render(scene, &shot.with(p, other(1)), &options);
+    let b = render(scene, &shot.with(p, other(2)), &options);
+    let m = render(scene, &shot.with(n - 2 * p, shot.seed), &options);
+    let started = Instant::now();
+    let w = p as f64 / n as f64;
+    let plain = blend(&[(&m.image, 1.0 - 2.0 * w), (&a.image, w), (&b.image, w)]);
+    // One sharpened seen emission serves both OIDN runs: it differs from M's own only
+    // where the samples disagree, at edges, which sharpening replaces in both alike.
+    let seen_emission = sharpened(blend(&[
+        (seen(&m), 1.0 - 2.0 * w),
+        (seen(&a), w),
+        (seen(&b), w),
+    ]));
+    let oidn_m = denoise::oidn(&m.image, Some(&seen_emission), None, AuxUse::None)?;
+    let (var_a, delta, delta_se) = measure(&oidn_m, &m.image, &a.image, &b.image);
+    let var_m = var_a * p as f64 / (n - 2 * p) as f64;
+    let oidn_error = delta + var_m;
+    let plain_variance = var_m * (n - 2 * p) as f64 / n as f64;
+    let chose_oidn = oidn_error <= plain_variance;
+    let image = match chose_oidn {
+        true => denoise::oidn(&plain, Some(&seen_emission), None, AuxUse::None)?,
+        false => plain.clone(),
+    };
+    let renders = [&a, &b, &m];
+    Ok(Fallback {
+        image,
+        plain,
+        seen_emission,
+        check: Some(OidnCheck {
+            spp_each: p,
+            plain_variance,
+            oidn_error,
+            oidn_error_se: delta_se,
+            chose_oidn,
+        }),
+        render_seconds: renders.iter().map(|r| r.stats.seconds).sum(),
+        denoise_seconds: started.elapsed().as_secs_f64(),
+        invalid_samples: renders.iter().map(|r| r.stats.invalid_samples).sum(),
+    })
+}

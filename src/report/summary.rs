@@ -1,0 +1,179 @@
+//! `table1.json`: a table run's images (`Row`, one per seed) summarized per scene,
+//! method and accounting, with each ratio's 95% confidence interval over the seeds.
+//!
+//! For a method m and a baseline b with corrected MSEs x_i (n_m seeds) and y_j (n_b),
+//! the ratio of means R = x̄ / ȳ has, to first order (the delta method),
+//!
+//!   SE(R)² ≈ R² (s_x² / (n_m x̄²) + s_y² / (n_b ȳ²)),                             (S1)
+//!
+//! and its interval is R ± t SE(R), t the 97.5% quantile of Student's t with the
+//! Welch–Satterthwaite degrees of freedom of the two relative variances. The seeds of
+//! m and b are independent renders. *Best* is the baseline (volpath, volpath_oidn,
+//! volpath_filtered) of least mean corrected MSE in the same scene and accounting.
+//!
+//! The correction's own standard error (`metrics::correction_se`) is common to every row
+//! of a scene, so it moves all of them together.
+
+use serde::{Deserialize, Serialize};
+use statrs::distribution::{ContinuousCDF, StudentsT};
+
+use super::row::{Accounting, Method, Row};
+
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+pub struct Summary {
+    pub scene: String,
+    pub method: Method,
+    pub accounting: Accounting,
+    pub seeds: Vec<u64>,
+    /// Means over the seeds.
+    pub spp: f64,
+    pub seconds: f64,
+    pub mse: f64,
+    pub mse_corrected: f64,
+    /// The standard error of `mse_corrected` (the seeds' spread).
+    pub mse_corrected_se: f64,
+    /// The correction's own standard error (`metrics::correction_se`), common to the
+    /// scene's rows.
+    pub correction_se: f64,
+    /// `[mean, ci_low, ci_high]` of the corrected MSE over plain volpath's (S1).
+    pub ratio_to_volpath: Option<[f64; 3]>,
+    /// The same over the best baseline's, `best`.
+    pub ratio_to_best: Option<[f64; 3]>,
+    pub best: Option<Method>,
+}
+
+fn mean_var(x: &[f64]) -> (f64, f64) {
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let var = match x.len() {
+        0 | 1 => f64::NAN,
+        _ => x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0),
+    };
+    (mean, var)
+}
+
+/// (S1): `[R, low, high]` for the ratio of the means of `x` over `y`; None where either
+/// has fewer than two values or a mean is not positive.
+pub fn ratio_interval(x: &[f64], y: &[f64]) -> Option<[f64; 3]> {
+    if x.len() < 2 || y.len() < 2 {
+        return None;
+    }
+    let ((mx, vx), (my, vy)) = (mean_var(x), mean_var(y));
+    if !(mx > 0.0 && my > 0.0) {
+        return None;
+    }
+    let r = mx / my;
+    let a = vx / (x.len() as f64 * mx * mx);
+    let b = vy / (y.len() as f64 * my * my);
+    let se = r * (a + b).sqrt();
+    let dof = match a + b > 0.0 {
+        true => (a + b).powi(2) / (a * a / (x.len() as f64 - 1.0) + b * b / (y.len() as f64 - 1.0)),
+        false => (x.len() + y.len() - 2) as f64,
+    };
+    let t = StudentsT::new(0.0, 1.0, dof.max(1.0))
+        .map(|d| d.inverse_cdf(0.975))
+        .unwrap_or(f64::NAN);
+    Some([r, r - t * se, r + t * se])
+}
+
+/// The rows summarized, in the order of their first appearance; `correction` gives each
+/// scene's correction standard error.
+pub fn summarize(rows: &[Row], correction: impl Fn(&str) -> f64) -> Vec<Summary> {
+    let mut keys: Vec<(&str, Method, Accounting)> = Vec::new();
+    for r in rows {
+        let k = (r.scene.as_str(), r.method, r.accounting);
+        if !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    let of = |scene: &str, method: Method, accounting: Accounting| -> Vec<&Row> {
+        rows.iter()
+            .filter(|r| r.scene == scene && r.method == method && r.accounting == accounting)
+            .collect()
+    };
+    let corrected = |rs: &[&Row]| -> Vec<f64> { rs.iter().map(|r| r.mse_corrected).collect() };
+    let mean = |v: Vec<f64>| mean_var(&v).0;
+    keys.iter()
+        .map(|&(scene, method, accounting)| {
+            let own = of(scene, method, accounting);
+            let x = corrected(&own);
+            let best = [
+                Method::Volpath,
+                Method::VolpathOidn,
+                Method::VolpathFiltered,
+            ]
+            .into_iter()
+            .filter(|b| !of(scene, *b, accounting).is_empty())
+            .min_by(|a, b| {
+                let (ma, mb) = (
+                    mean(corrected(&of(scene, *a, accounting))),
+                    mean(corrected(&of(scene, *b, accounting))),
+                );
+                ma.total_cmp(&mb)
+            });
+            // A row against itself is 1 exactly (the interval of two independent sets of
+            // seeds does not apply).
+            let versus = |b: Method| match b == method {
+                true => (x.len() >= 2).then_some([1.0; 3]),
+                false => ratio_interval(&x, &corrected(&of(scene, b, accounting))),
+            };
+            let (mx, vx) = mean_var(&x);
+            Summary {
+                scene: scene.to_string(),
+                method,
+                accounting,
+                seeds: own.iter().map(|r| r.seed).collect(),
+                spp: mean(own.iter().map(|r| r.spp as f64).collect()),
+                seconds: mean(own.iter().map(|r| r.seconds).collect()),
+                mse: mean(own.iter().map(|r| r.mse).collect()),
+                mse_corrected: mx,
+                mse_corrected_se: (vx / x.len() as f64).sqrt(),
+                correction_se: correction(scene),
+                ratio_to_volpath: versus(Method::Volpath),
+                ratio_to_best: best.and_then(versus),
+                best,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ratio_interval_covers_the_true_ratio_at_about_its_level() {
+        // Gaussian MSEs around 2 and 1 (relative spread 20%), 4 seeds each: the 95%
+        // interval must cover 2 about 95% of the time; a 50% interval would not.
+        let mut state = 12345u64;
+        let mut gauss = || {
+            let mut u = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        };
+        let trials = 4000;
+        let mut covered = 0;
+        for _ in 0..trials {
+            let x: Vec<f64> = (0..4).map(|_| 2.0 * (1.0 + 0.2 * gauss())).collect();
+            let y: Vec<f64> = (0..4).map(|_| 1.0 + 0.2 * gauss()).collect();
+            let [_, lo, hi] = ratio_interval(&x, &y).unwrap();
+            covered += (lo <= 2.0 && 2.0 <= hi) as usize;
+        }
+        let rate = covered as f64 / trials as f64;
+        // The delta method at n = 4 is approximate: within a few points of 95%.
+        assert!((0.90..=0.99).contains(&rate), "coverage {rate}");
+    }
+
+    #[test]
+    fn no_interval_from_one_seed_or_a_nonpositive_mean() {
+        assert_eq!(ratio_interval(&[1.0], &[1.0, 2.0]), None);
+        assert_eq!(ratio_interval(&[-1.0, -2.0], &[1.0, 2.0]), None);
+        let [r, lo, hi] = ratio_interval(&[2.0, 2.0], &[1.0, 1.0]).unwrap();
+        assert_eq!((r, lo, hi), (2.0, 2.0, 2.0));
+    }
+}
