@@ -17,9 +17,16 @@ use mediareg::report::summary::ratio_interval;
 
 use common::{load_seeded, root};
 
-/// (name, scene file, parameters, reference): scripts/bench's scenes, the cloud, Fig.
-/// 12's cube at albedo 0.5 and the Table 1 scenes.
-const SCENES: &[(&str, &str, &[(&str, &str)], &str)] = &[
+/// (name, scene file, parameters, reference).
+type Case = (
+    &'static str,
+    &'static str,
+    &'static [(&'static str, &'static str)],
+    &'static str,
+);
+
+/// scripts/bench's scenes, the cloud, Fig. 12's cube at albedo 0.5 and the Table 1 scenes.
+const SCENES: &[Case] = &[
     ("cube", "medium_cube", &[], "medium_cube"),
     (
         "chromatic_sphere",
