@@ -206,6 +206,7 @@ def test_regularize_bad_arguments():
         ({"target": (0, 0, 0)}, "orbit"),
         ({"medium": "honey"}, "honey"),
         ({"factor": 1.5}, "1.5"),
+        ({"denoise": "blur"}, "blur"),
     ]:
         with pytest.raises(ValueError, match=words):
             mediareg.regularize(cube, spp=1, frames=1, **kwargs)
