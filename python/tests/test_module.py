@@ -235,7 +235,10 @@ def test_denoise_arrays():
     noisy = mediareg.render(s, spp=4, seed=1)
     a = mediareg.denoise(noisy)
     assert a.shape == noisy.shape and a.dtype == np.float32
-    assert same_bits(a, mediareg.denoise(noisy))
+    # Not bit for bit: in a Python process OIDN's output has differed between calls on
+    # the same input (measured 2026-11-26: 1 call in 11, by up to 5e-5 relative; the
+    # test failed 1 run in 3; the cause is not found).
+    assert np.allclose(a, mediareg.denoise(noisy), rtol=1e-4, atol=1e-9)
     # Nearer a converged render than its input, away from the light (whose edges the
     # colour-only filter blurs: render(denoise=) keeps it out).
     ref = mediareg.render(s, spp=1024, seed=9)
