@@ -139,7 +139,7 @@ pub fn plain_or_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> 
         });
     }
     // Seeds far from the shot's (and within the 32 bits a seed has, as in Mitsuba).
-    let other = |k: u64| (shot.seed + k * 0x6a09_e667) & 0xffff_ffff;
+    let other = |k: u64| shot.seed.wrapping_add(k * 0x6a09_e667) & 0xffff_ffff;
     let a = render(scene, &shot.with(p, other(1)), &options);
     let b = render(scene, &shot.with(p, other(2)), &options);
     let m = render(scene, &shot.with(n - 2 * p, shot.seed), &options);
