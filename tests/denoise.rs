@@ -1,8 +1,8 @@
 //! `--denoise oidn` (issue 40): Intel Open Image Denoise lowers the error against the
 //! Mitsuba 3 reference by a stated margin on a mesh medium, a surface scene and the
 //! Candle (a directly visible flame), where an identity "denoiser" and a wide box blur
-//! do not; its output is bit-identical for the same input; bad input and a missing or
-//! wrong library are clear errors.
+//! do not; its output is the same for the same input (to its rounding); bad input and a
+//! missing or wrong library are clear errors.
 //!
 //! Needs the library (`scripts/fetch_oidn`, which `scripts/test` runs).
 
@@ -137,14 +137,20 @@ fn oidn_lowers_the_error_by_the_stated_margin_where_identity_and_blur_do_not() {
     }
 }
 
+/// The same input gives the same output, to OIDN's run-to-run rounding: its output is not
+/// bit-reproducible while other OIDN runs share the process (tests/regularize_fallback.rs
+/// failed 1 run in 2 on bit equality beside another test; a Python process differed in 1
+/// call of 11, by up to 5e-5 relative).
 #[test]
-fn the_same_input_gives_the_bit_identical_output() {
+fn the_same_input_gives_the_same_output() {
     let n = render_noisy("cbox", &[], 4, 5);
     let a = denoise::oidn(&n.image, Some(&n.seen), Some(&n.aux), AuxUse::AlbedoNormal).unwrap();
     let b = denoise::oidn(&n.image, Some(&n.seen), Some(&n.aux), AuxUse::AlbedoNormal).unwrap();
-    let bits = |i: &Image| -> Vec<u32> { i.pixels.iter().flatten().map(|v| v.to_bits()).collect() };
-    assert_eq!(bits(&a), bits(&b));
-    assert_ne!(bits(&a), bits(&n.image), "the denoiser changed nothing");
+    let values = |i: &Image| -> Vec<f32> { i.pixels.iter().flatten().copied().collect() };
+    for (x, y) in values(&a).iter().zip(values(&b)) {
+        assert!((x - y).abs() <= 1e-4 * y.abs() + 1e-9, "{x} vs {y}");
+    }
+    assert_ne!(values(&a), values(&n.image), "the denoiser changed nothing");
 }
 
 #[test]

@@ -2,7 +2,8 @@
 //! where the check of `regularize::fallback` finds that OIDN lowers the error. The check
 //! must keep plain volpath on two scenes where OIDN raises the error and keep OIDN on two
 //! where it lowers it, each verified against the scene's Mitsuba 3 reference; below the
-//! check's sample count the output is `render --denoise oidn`'s, bit for bit.
+//! check's sample count the output is `render --denoise oidn`'s (the render bit for bit,
+//! OIDN's output to its run-to-run rounding).
 //!
 //! Needs the library (`scripts/fetch_oidn`, which `scripts/test` runs).
 
@@ -81,7 +82,7 @@ fn the_check_keeps_plain_volpath_where_oidn_raises_the_error_and_oidn_where_it_l
 }
 
 #[test]
-fn below_the_check_one_frame_is_render_denoise_oidn_bit_for_bit() {
+fn below_the_check_one_frame_is_render_denoise_oidn() {
     let scene = load_seeded(&root().join("mitsuba_scenes/medium_cube.xml"), &[], 16, 5);
     let out = one_frame(&scene);
     assert!(out.oidn_check.is_none(), "16 spp is below the check");
@@ -95,5 +96,17 @@ fn below_the_check_one_frame_is_render_denoise_oidn_bit_for_bit() {
     );
     let d = denoised::oidn(&scene, &scene.shot, &r, AuxUse::None, None).unwrap();
     assert_eq!(out.source.pixels, r.image.pixels, "the plain render");
-    assert_eq!(out.predicted.pixels, d.pixels, "its OIDN");
+    // OIDN's own output is not bit-reproducible while other OIDN runs share the process
+    // (this test failed 1 run in 2 beside the other test of this file, passed alone):
+    // equal up to its rounding.
+    for (a, b) in out.predicted.pixels.iter().zip(&d.pixels) {
+        for c in 0..3 {
+            assert!(
+                (a[c] - b[c]).abs() <= 1e-4 * b[c].abs() + 1e-9,
+                "its OIDN: {} vs {}",
+                a[c],
+                b[c]
+            );
+        }
+    }
 }
