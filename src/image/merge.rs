@@ -40,14 +40,7 @@ pub fn merge(chunks: &[(Image, u64)]) -> Result<Merged> {
         bail!("the chunks hold no samples");
     }
     let total = spp as f64;
-    let mut mean = vec![[0f64; 3]; w * h];
-    for (img, n) in chunks {
-        for (m, p) in mean.iter_mut().zip(&img.pixels) {
-            for c in 0..3 {
-                m[c] += *n as f64 * p[c] as f64 / total;
-            }
-        }
-    }
+    let mean = weighted_mean(chunks.iter().map(|(img, n)| (img, *n)), w * h, total);
     let var = (chunks.len() > 1).then(|| {
         let mut ss = vec![[0f64; 3]; w * h];
         for (img, n) in chunks {
@@ -67,6 +60,32 @@ pub fn merge(chunks: &[(Image, u64)]) -> Result<Merged> {
         spp,
         chunks: chunks.len(),
     })
+}
+
+/// (M1): Σ n_k x_k / N over `chunks` of `len` pixels, N = `total`.
+fn weighted_mean<'a>(
+    chunks: impl Iterator<Item = (&'a Image, u64)>,
+    len: usize,
+    total: f64,
+) -> Vec<[f64; 3]> {
+    let mut mean = vec![[0f64; 3]; len];
+    for (img, n) in chunks {
+        for (m, p) in mean.iter_mut().zip(&img.pixels) {
+            for c in 0..3 {
+                m[c] += n as f64 * p[c] as f64 / total;
+            }
+        }
+    }
+    mean
+}
+
+/// (M1) alone, for images of one size already in memory: the mean of renders of one
+/// shot weighted by their samples per pixel (no variance, no checks of the headers).
+pub fn mean_by_spp(chunks: &[(&Image, u64)]) -> Image {
+    let first = chunks[0].0;
+    let total = chunks.iter().map(|(_, n)| *n).sum::<u64>() as f64;
+    let mean = weighted_mean(chunks.iter().copied(), first.pixels.len(), total);
+    to_image(first.width, first.height, mean.into_iter())
 }
 
 fn to_image(width: usize, height: usize, px: impl Iterator<Item = [f64; 3]>) -> Image {

@@ -25,6 +25,7 @@
 use std::time::Instant;
 
 use crate::denoise::{self, AuxUse, OidnError};
+use crate::image::merge::mean_by_spp;
 use crate::image::Image;
 use crate::integrator::{aovs, render, RenderOptions, Rendered};
 use crate::scene::shot::Shot;
@@ -59,20 +60,6 @@ pub struct Fallback {
     /// Sharpening, OIDN and the check.
     pub denoise_seconds: f64,
     pub invalid_samples: u64,
-}
-
-/// The weighted mean of images (weights summing to 1).
-fn blend(parts: &[(&Image, f64)]) -> Image {
-    let mut out = parts[0].0.clone();
-    for (i, p) in out.pixels.iter_mut().enumerate() {
-        *p = std::array::from_fn(|c| {
-            parts
-                .iter()
-                .map(|(img, w)| img.pixels[i][c] as f64 * w)
-                .sum::<f64>() as f32
-        });
-    }
-    out
 }
 
 fn seen(r: &Rendered) -> &Image {
@@ -144,18 +131,18 @@ pub fn plain_or_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> 
     let b = render(scene, &shot.with(p, other(2)), &options);
     let m = render(scene, &shot.with(n - 2 * p, shot.seed), &options);
     let started = Instant::now();
-    let w = p as f64 / n as f64;
-    let plain = blend(&[(&m.image, 1.0 - 2.0 * w), (&a.image, w), (&b.image, w)]);
+    let (p64, m64) = (p as u64, (n - 2 * p) as u64);
+    let plain = mean_by_spp(&[(&m.image, m64), (&a.image, p64), (&b.image, p64)]);
     // One sharpened seen emission serves both OIDN runs: it differs from M's own only
     // where the samples disagree, at edges, which sharpening replaces in both alike.
-    let seen_emission = sharpened(blend(&[
-        (seen(&m), 1.0 - 2.0 * w),
-        (seen(&a), w),
-        (seen(&b), w),
+    let seen_emission = sharpened(mean_by_spp(&[
+        (seen(&m), m64),
+        (seen(&a), p64),
+        (seen(&b), p64),
     ]));
     let oidn_m = denoise::oidn(&m.image, Some(&seen_emission), None, AuxUse::None)?;
     let (var_a, delta, delta_se) = measure(&oidn_m, &m.image, &a.image, &b.image);
-    let var_m = var_a * p as f64 / (n - 2 * p) as f64;
+    let var_m = var_a * p as f64 / m64 as f64;
     let oidn_error = delta + var_m;
     let plain_variance = var_m * (n - 2 * p) as f64 / n as f64;
     let chose_oidn = oidn_error <= plain_variance;

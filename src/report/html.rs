@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::output::{paper_cells, summaries_of, RunInfo, PAPER_HEADER};
+use super::output::{interval, paper_cells, summaries_of, RunInfo, PAPER_HEADER};
 use super::table::{Method, Row};
 use crate::image;
 use crate::image::Image;
@@ -142,11 +142,6 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
     // The table: the summaries over seeds.
     let summaries = summaries_of(&run, &all);
     html.push_str("<h2>Table 1</h2>\n<table><tr><th>scene</th><th>method</th><th>accounting</th><th>spp</th><th>seconds</th><th>MSE corrected</th><th>÷ volpath [95% CI]</th><th>÷ best [95% CI]</th><th>best</th></tr>\n");
-    let interval = |x: Option<[f64; 3]>| {
-        x.map_or("–".to_string(), |[m, lo, hi]| {
-            format!("{m:.3} [{lo:.3}, {hi:.3}]")
-        })
-    };
     for r in &summaries {
         writeln!(
             html,

@@ -223,7 +223,8 @@ pub fn write_outputs(opts: &TableOptions, run: &TableRun) -> Result<()> {
     write(&opts.out.join("table1.md"), &markdown(&info, &summaries)?)
 }
 
-fn interval(x: Option<[f64; 3]>) -> String {
+/// `[mean, low, high]` as a table cell: "mean [low, high]".
+pub fn interval(x: Option<[f64; 3]>) -> String {
     x.map_or("–".into(), |[m, lo, hi]| {
         format!("{m:.3} [{lo:.3}, {hi:.3}]")
     })
