@@ -1,8 +1,8 @@
 //! One compressed wide BVH (obvhs CWBVH) over every triangle of the scene, with the
 //! analytic shapes tested one by one beside it when there are few of them, else in it
 //! as one primitive each. Mitsuba `cube`s, when few, are tested beside it as boxes
-//! ([`Cuboid`]) instead of as 12 triangles in it. With the `embree` cargo feature, a
-//! BVH of triangles only is Embree's instead ([`Backend`]).
+//! ([`Cuboid`]) instead of as 12 triangles in it. Where Embree 3 is installed, a BVH of
+//! triangles only is Embree's instead ([`Backend`], [`embree_api`]).
 
 use std::time::Duration;
 
@@ -13,8 +13,8 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::ray::Ray as BvhRay;
 use obvhs::BvhBuildParams;
 
-#[cfg(feature = "embree")]
 mod embree;
+pub mod embree_api;
 mod hit;
 mod node;
 
@@ -88,26 +88,57 @@ const SEPARATE_ANALYTIC: usize = 16;
 pub enum Backend {
     /// obvhs's compressed wide BVH, with this module's node and triangle tests.
     Obvhs,
-    /// Embree 3 (the `embree` feature; without it, obvhs). It is used where the BVH
-    /// would hold triangles only: with few primitives they are still tested one by one,
-    /// and a BVH that holds analytic shapes too (more than [`SEPARATE_ANALYTIC`]) stays
-    /// obvhs's.
+    /// Embree 3, when it loads (else obvhs). It is used where the BVH would hold
+    /// triangles only: with few primitives they are still tested one by one, and a BVH
+    /// that holds analytic shapes too (more than [`SEPARATE_ANALYTIC`]) stays obvhs's.
     Embree,
 }
 
 impl Backend {
-    /// Embree when the crate is built with it, else obvhs.
-    pub const DEFAULT: Backend = if cfg!(feature = "embree") {
-        Backend::Embree
-    } else {
-        Backend::Obvhs
-    };
+    /// What `MEDIAREG_ACCEL` asks for (see [`embree_api`]): unset, Embree when it loads,
+    /// else obvhs; an error for a value it does not know or for `embree` where the
+    /// library does not load.
+    pub fn requested() -> Result<Backend, String> {
+        use embree_api::Request;
+        match embree_api::request()? {
+            Request::Obvhs => Ok(Backend::Obvhs),
+            Request::Auto => Ok(match embree_api::load() {
+                Ok(_) => Backend::Embree,
+                Err(_) => Backend::Obvhs,
+            }),
+            Request::Embree => match embree_api::load() {
+                Ok(_) => Ok(Backend::Embree),
+                Err(e) => Err(format!(
+                    "MEDIAREG_ACCEL=embree: Embree 3 does not load ({e}); {}",
+                    embree_api::INSTALL_HINT
+                )),
+            },
+        }
+    }
+
+    /// The ray caster a render of a triangle mesh uses, as `mediareg --version` says it:
+    /// "Embree 3.13.5" or "obvhs", with why where Embree is not used.
+    pub fn describe() -> String {
+        match Backend::requested() {
+            Ok(Backend::Embree) => match embree_api::load() {
+                Ok(api) => format!("Embree {} ({})", api.version, api.path),
+                Err(e) => format!("obvhs (Embree: {e})"),
+            },
+            Ok(Backend::Obvhs) => match embree_api::load() {
+                Ok(_) => "obvhs (MEDIAREG_ACCEL=obvhs)".to_string(),
+                Err(e) => format!(
+                    "obvhs (Embree 3 does not load: {e}; for the faster one, {})",
+                    embree_api::INSTALL_HINT
+                ),
+            },
+            Err(e) => format!("obvhs ({e})"),
+        }
+    }
 }
 
 pub struct Accel {
     /// obvhs's BVH (empty where Embree traverses).
     bvh: CwBvh,
-    #[cfg(feature = "embree")]
     embree: Option<embree::EmbreeScene>,
     /// Primitive `i` of the traversal (`bvh.primitive_indices` already applied).
     prims: Vec<PrimRef>,
@@ -128,14 +159,36 @@ pub struct Accel {
 }
 
 impl Accel {
-    /// The accelerator over `shapes` with [`Backend::DEFAULT`].
+    /// The accelerator over `shapes` with [`Backend::requested`] (obvhs, with a warning,
+    /// where that is an error).
     pub fn build(shapes: &[&Geometry]) -> Accel {
-        Self::build_with(shapes, Backend::DEFAULT)
+        match Backend::requested() {
+            Ok(b) => Self::build_with(shapes, b),
+            Err(e) => {
+                let mut a = Self::build_with(shapes, Backend::Obvhs);
+                a.warning = Some(format!("{e}; rays are cast with obvhs instead"));
+                a
+            }
+        }
+    }
+
+    /// What casts this scene's rays, for the render's output: "Embree 3.13.5",
+    /// "obvhs", or the shapes tested one by one where there is no BVH.
+    pub fn describe(&self) -> String {
+        if self.embree.is_some() {
+            if let Ok(api) = embree_api::load() {
+                return format!("Embree {}", api.version);
+            }
+        }
+        if self.traverses_bvh() {
+            "obvhs".to_string()
+        } else {
+            "each shape tested in turn (too few for a BVH)".to_string()
+        }
     }
 
     /// Which ray caster traverses the triangles.
     pub fn backend(&self) -> Backend {
-        #[cfg(feature = "embree")]
         if self.embree.is_some() {
             return Backend::Embree;
         }
@@ -215,20 +268,13 @@ impl Accel {
             }
         }
         // Embree builds its own BVH (from the meshes, below): prims stay in input order.
-        let embree_wanted = cfg!(feature = "embree")
-            && backend == Backend::Embree
-            && !mixed
-            && prims.len() > BRUTE_FORCE_PRIMS;
-        #[cfg(feature = "embree")]
+        let embree_wanted = backend == Backend::Embree && !mixed && prims.len() > BRUTE_FORCE_PRIMS;
         let (embree, warning) = match embree_wanted.then(|| Self::build_embree(shapes, &prims)) {
             Some(Ok(e)) => (Some(e), None),
             Some(Err(e)) => (None, Some(format!("{e}; rays are cast with obvhs instead"))),
             None => (None, None),
         };
-        #[cfg(feature = "embree")]
         let embree_wanted = embree.is_some();
-        #[cfg(not(feature = "embree"))]
-        let warning = None;
         let bvh = if aabbs.is_empty() || embree_wanted {
             CwBvh::default()
         } else {
@@ -280,7 +326,6 @@ impl Accel {
         }
         Accel {
             bvh,
-            #[cfg(feature = "embree")]
             embree,
             prims,
             triangles,
@@ -294,7 +339,6 @@ impl Accel {
 
     /// Embree's scene over the triangles of `prims` (in input order: each mesh's
     /// triangles contiguous, in the mesh's order).
-    #[cfg(feature = "embree")]
     fn build_embree(
         shapes: &[&Geometry],
         prims: &[PrimRef],
@@ -314,7 +358,9 @@ impl Accel {
             });
             leaf += m.triangles.len();
         }
-        embree::EmbreeScene::build(&meshes)
+        let api = embree_api::load()
+            .map_err(|e| format!("Embree 3 does not load ({e}); {}", embree_api::INSTALL_HINT))?;
+        embree::EmbreeScene::build(api, &meshes)
     }
 
     /// The cube `shape` as the accelerator tests it, if it is tested as a box.
@@ -492,7 +538,6 @@ impl Accel {
             }
             return best;
         }
-        #[cfg(feature = "embree")]
         if let Some(e) = &self.embree {
             let found = if filtered {
                 e.intersect_filtered(o, d, t_best, &mut |c| keep(c.shape))
@@ -501,8 +546,6 @@ impl Accel {
             };
             return found.or(best);
         }
-        #[cfg(not(feature = "embree"))]
-        let _ = filtered;
         let (ray, back) = traversal_ray(o, d, t_best);
         let mut best_prim = None;
         self.traverse(ray, |ray_tmax, id| {
@@ -646,7 +689,6 @@ impl Accel {
             }
             return Crossings::Found;
         }
-        #[cfg(feature = "embree")]
         if let Some(e) = &self.embree {
             // Embree may hand over a triangle twice (see `each_hit`): each counts once.
             let mut seen = arrayvec::ArrayVec::<u32, MAX_CROSSINGS>::new();
@@ -748,7 +790,6 @@ impl Accel {
             return (0..self.prims.len())
                 .any(|i| self.prim_intersect(shapes, i, o, d, tmax).is_some());
         }
-        #[cfg(feature = "embree")]
         if let Some(e) = &self.embree {
             return e.occluded(o, d, tmax);
         }
@@ -768,7 +809,7 @@ impl Accel {
     }
 }
 
-#[cfg(all(test, feature = "embree"))]
+#[cfg(test)]
 mod embree_tests;
 #[cfg(test)]
 mod tests;

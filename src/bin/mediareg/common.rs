@@ -175,6 +175,8 @@ pub fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
         bail!("--spp must be at least 1");
     }
     set_threads(args.threads)?;
+    // A ray caster asked for and missing is an error before a long load.
+    mediareg::geometry::accel::Backend::requested().map_err(|e| anyhow!(e))?;
     let opts = xml::LoadOptions {
         params,
         search_dirs: args.search.clone(),

@@ -21,6 +21,7 @@ use interrupt::{EXIT_INTERRUPTED, INTERRUPT};
 #[command(
     name = "mediareg",
     version,
+    long_version = long_version(),
     about = "A renderer for participating media that reads Mitsuba 3 scene files"
 )]
 struct Cli {
@@ -53,6 +54,36 @@ enum Command {
     /// Merge renders of one shot made in chunks (distinct seeds) into OUT.exr, weighted
     /// by each chunk's spp, and OUT_var.exr, the variance of that mean.
     Merge(merge::MergeArgs),
+}
+
+/// `mediareg --version`: the version, the ray caster a mesh scene gets here, and the
+/// CPU features the build was compiled for (`.cargo/config.toml`: the building CPU's).
+fn long_version() -> &'static str {
+    let features: Vec<&str> = [
+        ("sse4.2", cfg!(target_feature = "sse4.2")),
+        ("avx", cfg!(target_feature = "avx")),
+        ("avx2", cfg!(target_feature = "avx2")),
+        ("fma", cfg!(target_feature = "fma")),
+        ("bmi2", cfg!(target_feature = "bmi2")),
+        ("avx512f", cfg!(target_feature = "avx512f")),
+        ("avx512vl", cfg!(target_feature = "avx512vl")),
+        ("neon", cfg!(target_feature = "neon")),
+    ]
+    .into_iter()
+    .filter_map(|(name, on)| on.then_some(name))
+    .collect();
+    let text = format!(
+        "{}\nray caster: {}\nCPU features: {}",
+        env!("CARGO_PKG_VERSION"),
+        mediareg::geometry::accel::Backend::describe(),
+        if features.is_empty() {
+            "none beyond the target's baseline".to_string()
+        } else {
+            features.join(" ")
+        }
+    );
+    // Once per process, for clap's 'static string.
+    Box::leak(text.into_boxed_str())
 }
 
 fn main() -> ExitCode {

@@ -107,6 +107,7 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
             })?,
     };
 
+    eprintln!("ray caster: {}", scene_data.accel.describe());
     let show = std::io::stderr().is_terminal();
     install_handler()?;
     let rendered = integrator::render(

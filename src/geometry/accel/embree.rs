@@ -1,6 +1,6 @@
-//! The accelerator's triangles in Embree 3 (the ray caster Mitsuba 3 uses), behind the
-//! `embree` cargo feature: its closest hit, occlusion test and every-hit search answer
-//! for the BVH of [`super::Accel`] when that holds triangles only. Analytic shapes and
+//! The accelerator's triangles in Embree 3 (the ray caster Mitsuba 3 uses), when the
+//! library loads ([`super::embree_api`]): its closest hit, occlusion test and every-hit
+//! search answer for the BVH of [`super::Accel`] when that holds triangles only. Analytic shapes and
 //! Mitsuba `cube`s tested as boxes stay beside it, as with obvhs.
 //!
 //! One Embree triangle geometry per mesh, built as Mitsuba 3 builds its scene
@@ -13,15 +13,16 @@
 
 use std::ptr;
 
-use embree::sys;
 use glam::Vec3A;
 
+use super::embree_api::{self as sys, Api, IntersectContext, INVALID_ID};
 use super::Hit;
 
 /// An Embree device and the committed scene of the accelerator's triangles.
 pub(crate) struct EmbreeScene {
-    device: sys::RTCDevice,
-    scene: sys::RTCScene,
+    api: &'static Api,
+    device: sys::Device,
+    scene: sys::Scene,
     /// The accelerator's leaf index of each geometry's first triangle (by `geomID`):
     /// a hit's leaf is `first_leaf[geomID] + primID`.
     first_leaf: Vec<u32>,
@@ -60,7 +61,7 @@ pub(crate) struct Candidate {
 /// so a pointer to it is a pointer to this) with what the filter needs.
 #[repr(C)]
 struct FilterContext<'a> {
-    base: sys::RTCIntersectContext,
+    base: IntersectContext,
     scene: &'a EmbreeScene,
     /// Called with each candidate hit; true accepts it (a closest-hit search keeps it
     /// as the nearest so far; an occlusion search ends), false rejects it.
@@ -69,7 +70,7 @@ struct FilterContext<'a> {
 
 /// Embree's filter callback: [`FilterContext::visit`] for each valid ray of the
 /// packet (Embree's single-ray queries pass one), rejected by clearing its `valid`.
-unsafe extern "C" fn filter(args: *const sys::RTCFilterFunctionNArguments) {
+unsafe extern "C" fn filter(args: *const sys::FilterArguments) {
     // SAFETY: Embree passes valid arguments; `context` is the `FilterContext` the query
     // was started with (`base` first, `repr(C)`). RTCRayN and RTCHitN are N-wide SoA
     // structures of 4-byte fields: field k of ray i at word k·N + i (rtcore_ray.h's
@@ -78,7 +79,7 @@ unsafe extern "C" fn filter(args: *const sys::RTCFilterFunctionNArguments) {
     unsafe {
         let args = &*args;
         let ctx = &mut *(args.context as *mut FilterContext);
-        let n = args.N as usize;
+        let n = args.n as usize;
         let ray = args.ray as *const f32;
         let hit = args.hit as *const u32;
         let hit_f = args.hit as *const f32;
@@ -104,24 +105,11 @@ unsafe extern "C" fn filter(args: *const sys::RTCFilterFunctionNArguments) {
     }
 }
 
-fn context() -> sys::RTCIntersectContext {
-    // rtcInitIntersectContext (an inline function of rtcore_scene.h).
-    sys::RTCIntersectContext {
-        flags: sys::RTCIntersectContextFlags::INCOHERENT,
-        filter: None,
-        instID: [u32::MAX; 1],
-    }
-}
-
-fn ray(o: Vec3A, d: Vec3A, tmax: f32) -> sys::RTCRay {
-    sys::RTCRay {
-        org_x: o.x,
-        org_y: o.y,
-        org_z: o.z,
+fn ray(o: Vec3A, d: Vec3A, tmax: f32) -> sys::Ray {
+    sys::Ray {
+        org: o.to_array(),
         tnear: 0.0,
-        dir_x: d.x,
-        dir_y: d.y,
-        dir_z: d.z,
+        dir: d.to_array(),
         time: 0.0,
         tfar: tmax,
         mask: u32::MAX,
@@ -130,77 +118,75 @@ fn ray(o: Vec3A, d: Vec3A, tmax: f32) -> sys::RTCRay {
     }
 }
 
-const INVALID_ID: u32 = u32::MAX;
-
 impl EmbreeScene {
     /// The committed scene of `meshes`, or why Embree could not build it.
-    pub(crate) fn build(meshes: &[MeshRef]) -> Result<EmbreeScene, String> {
+    pub(crate) fn build(api: &'static Api, meshes: &[MeshRef]) -> Result<EmbreeScene, String> {
         // SAFETY: plain Embree API calls on handles created here; buffer writes stay
         // within the sizes asked for (Embree pads new buffers for its 16-byte loads).
         unsafe {
-            let device = sys::rtcNewDevice(ptr::null());
+            let device = (api.new_device)(ptr::null());
             if device.is_null() {
-                return Err("rtcNewDevice failed (is libembree3 installed?)".into());
+                return Err("Embree: rtcNewDevice failed".into());
             }
-            let scene = sys::rtcNewScene(device);
+            let scene = (api.new_scene)(device);
             // The handles are released by Drop from here on, also on an error below.
             let mut s = EmbreeScene {
+                api,
                 device,
                 scene,
                 first_leaf: Vec::with_capacity(meshes.len()),
                 shape: Vec::with_capacity(meshes.len()),
             };
             if scene.is_null() {
-                s.scene = ptr::null_mut();
                 return Err(s.error("rtcNewScene"));
             }
-            sys::rtcSetSceneBuildQuality(scene, sys::RTCBuildQuality::HIGH);
-            // Filter functions in the intersect context (`filter` below) are called
+            (api.set_scene_build_quality)(scene, sys::BUILD_QUALITY_HIGH);
+            // Filter functions in the intersect context (`filter` above) are called
             // only where the scene allows them; a query without one pays a null check.
-            sys::rtcSetSceneFlags(scene, sys::RTCSceneFlags::CONTEXT_FILTER_FUNCTION);
+            (api.set_scene_flags)(scene, sys::SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
             for m in meshes {
-                let geometry = sys::rtcNewGeometry(device, sys::RTCGeometryType::TRIANGLE);
+                let geometry = (api.new_geometry)(device, sys::GEOMETRY_TYPE_TRIANGLE);
                 if geometry.is_null() {
                     return Err(s.error("rtcNewGeometry"));
                 }
-                let vertices = sys::rtcSetNewGeometryBuffer(
+                let vertices = (api.set_new_geometry_buffer)(
                     geometry,
-                    sys::RTCBufferType::VERTEX,
+                    sys::BUFFER_TYPE_VERTEX,
                     0,
-                    sys::RTCFormat::FLOAT3,
+                    sys::FORMAT_FLOAT3,
                     16,
                     m.positions.len(),
                 ) as *mut [f32; 4];
-                let indices = sys::rtcSetNewGeometryBuffer(
+                let indices = (api.set_new_geometry_buffer)(
                     geometry,
-                    sys::RTCBufferType::INDEX,
+                    sys::BUFFER_TYPE_INDEX,
                     0,
-                    sys::RTCFormat::UINT3,
+                    sys::FORMAT_UINT3,
                     12,
                     m.triangles.len(),
                 ) as *mut [u32; 3];
                 if vertices.is_null() || indices.is_null() {
-                    sys::rtcReleaseGeometry(geometry);
+                    (api.release_geometry)(geometry);
                     return Err(s.error("rtcSetNewGeometryBuffer"));
                 }
                 for (i, p) in m.positions.iter().enumerate() {
                     vertices.add(i).write([p.x, p.y, p.z, 0.0]);
                 }
                 ptr::copy_nonoverlapping(m.triangles.as_ptr(), indices, m.triangles.len());
-                sys::rtcSetGeometryBuildQuality(geometry, sys::RTCBuildQuality::HIGH);
-                sys::rtcCommitGeometry(geometry);
-                let id = sys::rtcAttachGeometry(scene, geometry);
+                (api.set_geometry_build_quality)(geometry, sys::BUILD_QUALITY_HIGH);
+                (api.commit_geometry)(geometry);
+                let id = (api.attach_geometry)(scene, geometry);
                 // The scene holds its own reference.
-                sys::rtcReleaseGeometry(geometry);
+                (api.release_geometry)(geometry);
                 if id as usize != s.first_leaf.len() {
                     return Err(s.error("rtcAttachGeometry"));
                 }
                 s.first_leaf.push(m.first_leaf);
                 s.shape.push(m.shape);
             }
-            sys::rtcCommitScene(scene);
-            match sys::rtcGetDeviceError(device) {
-                sys::RTCError::NONE => Ok(s),
+            (api.commit_scene)(scene);
+            match (api.get_device_error)(device) {
+                sys::ERROR_NONE => Ok(s),
                 _ => Err(s.error("rtcCommitScene")),
             }
         }
@@ -208,8 +194,8 @@ impl EmbreeScene {
 
     fn error(&self, call: &str) -> String {
         // SAFETY: a valid device handle.
-        let code = unsafe { sys::rtcGetDeviceError(self.device) };
-        format!("Embree: {call} failed ({code:?})")
+        let code = unsafe { (self.api.get_device_error)(self.device) };
+        format!("Embree: {call} failed (RTCError {code})")
     }
 
     /// Closest hit along `o + t d`, t ≤ tmax, u and v the barycentrics of vertices 1
@@ -219,7 +205,7 @@ impl EmbreeScene {
     /// the cache on most hits.
     #[inline(always)]
     pub(crate) fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<Hit> {
-        let mut ctx = context();
+        let mut ctx = IntersectContext::new(None);
         self.intersect_with(&mut ctx, o, d, tmax)
     }
 
@@ -232,10 +218,7 @@ impl EmbreeScene {
         keep: &mut dyn FnMut(Candidate) -> bool,
     ) -> Option<Hit> {
         let mut ctx = FilterContext {
-            base: sys::RTCIntersectContext {
-                filter: Some(filter),
-                ..context()
-            },
+            base: IntersectContext::new(Some(filter)),
             scene: self,
             visit: keep,
         };
@@ -245,46 +228,44 @@ impl EmbreeScene {
     #[inline(always)]
     fn intersect_with(
         &self,
-        ctx: &mut sys::RTCIntersectContext,
+        ctx: &mut IntersectContext,
         o: Vec3A,
         d: Vec3A,
         tmax: f32,
     ) -> Option<Hit> {
-        let mut rh = sys::RTCRayHit {
+        let mut rh = sys::RayHit {
             ray: ray(o, d, tmax),
-            hit: sys::RTCHit {
-                Ng_x: 0.0,
-                Ng_y: 0.0,
-                Ng_z: 0.0,
+            hit: sys::Hit {
+                ng: [0.0; 3],
                 u: 0.0,
                 v: 0.0,
-                primID: INVALID_ID,
-                geomID: INVALID_ID,
-                instID: [INVALID_ID; 1],
+                prim_id: INVALID_ID,
+                geom_id: INVALID_ID,
+                inst_id: [INVALID_ID],
             },
         };
         // SAFETY: a committed scene; `ctx` is a plain context or the `base` of a
         // FilterContext that outlives the call.
-        unsafe { sys::rtcIntersect1(self.scene, ctx, &mut rh) };
+        unsafe { (self.api.intersect1)(self.scene, ctx, &mut rh) };
         let h = rh.hit;
-        (h.geomID != INVALID_ID).then(|| Hit {
+        (h.geom_id != INVALID_ID).then(|| Hit {
             t: rh.ray.tfar,
-            shape: self.shape[h.geomID as usize],
-            prim: h.primID,
+            shape: self.shape[h.geom_id as usize],
+            prim: h.prim_id,
             u: h.u,
             v: h.v,
-            leaf: self.first_leaf[h.geomID as usize] + h.primID,
-            ng: [h.Ng_x, h.Ng_y, h.Ng_z],
+            leaf: self.first_leaf[h.geom_id as usize] + h.prim_id,
+            ng: h.ng,
         })
     }
 
     /// Whether any triangle meets `o + t d`, t ≤ tmax.
     #[inline(always)]
     pub(crate) fn occluded(&self, o: Vec3A, d: Vec3A, tmax: f32) -> bool {
-        let mut ctx = context();
+        let mut ctx = IntersectContext::new(None);
         let mut r = ray(o, d, tmax);
         // SAFETY: a committed scene and a plain context.
-        unsafe { sys::rtcOccluded1(self.scene, &mut ctx, &mut r) };
+        unsafe { (self.api.occluded1)(self.scene, &mut ctx, &mut r) };
         // Embree marks an occluded ray by setting tfar to −∞.
         r.tfar < 0.0
     }
@@ -300,16 +281,13 @@ impl EmbreeScene {
         visit: &mut dyn FnMut(Candidate) -> bool,
     ) -> bool {
         let mut ctx = FilterContext {
-            base: sys::RTCIntersectContext {
-                filter: Some(filter),
-                ..context()
-            },
+            base: IntersectContext::new(Some(filter)),
             scene: self,
             visit,
         };
         let mut r = ray(o, d, tmax);
         // SAFETY: a committed scene; the context outlives the call.
-        unsafe { sys::rtcOccluded1(self.scene, &mut ctx.base, &mut r) };
+        unsafe { (self.api.occluded1)(self.scene, &mut ctx.base, &mut r) };
         r.tfar < 0.0
     }
 }
@@ -319,9 +297,9 @@ impl Drop for EmbreeScene {
         // SAFETY: the handles were created by `build` and are released once.
         unsafe {
             if !self.scene.is_null() {
-                sys::rtcReleaseScene(self.scene);
+                (self.api.release_scene)(self.scene);
             }
-            sys::rtcReleaseDevice(self.device);
+            (self.api.release_device)(self.device);
         }
     }
 }

@@ -172,7 +172,7 @@ fn node_test_matches_obvhs() {
 /// Nanoseconds a closest-hit query, an occlusion test and a crossings search (the
 /// Bunny passing shadow rays) take on 200,000 rays from random points of the Bunny's
 /// box (half of length 0.2 as free flights, half unbounded as shadow rays), best of 15
-/// rounds, with each backend (both obvhs without the `embree` feature): `cargo test --release --lib -- --ignored traversal_speed
+/// rounds, with each backend (both obvhs where Embree 3 is not installed): `cargo test --release --lib -- --ignored traversal_speed
 /// --nocapture` (needs .cache/meshes, see scripts/fetch_meshes).
 #[test]
 #[ignore]
