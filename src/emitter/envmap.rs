@@ -32,6 +32,27 @@ pub struct EnvMap {
     col_cdf: Vec<f32>,
     /// Probability of each cell.
     cell_p: Vec<f32>,
+    /// Every [`BLOCK`]-th entry of each row's `col_cdf` (the first of each block):
+    /// a sample's column search reads this small table, then one block of the row,
+    /// instead of stepping through the whole row (a cache miss a step on a large map).
+    col_coarse: Vec<f32>,
+}
+
+/// Entries of a row's column CDF per block of the two-level search (a cache line).
+const BLOCK: usize = 16;
+
+/// The first index i of the ascending `row` with row[i] > s (`partition_point`),
+/// found through `coarse` = row[0], row[BLOCK], row[2 BLOCK], …: the block where
+/// coarse first exceeds s bounds it, and only that block of `row` is searched.
+fn first_above(row: &[f32], coarse: &[f32], s: f32) -> usize {
+    let b = coarse.partition_point(|&c| c <= s);
+    if b == 0 {
+        return 0;
+    }
+    // row[BLOCK (b − 1)] ≤ s, and row[BLOCK b] > s where that exists.
+    let start = BLOCK * (b - 1);
+    let end = (BLOCK * b + 1).min(row.len());
+    start + row[start..end].partition_point(|&c| c <= s)
 }
 
 /// Mitsuba's `luminance` of linear sRGB.
@@ -96,6 +117,13 @@ impl EnvMap {
             acc_rows += row;
             row_cdf[cy + 1] = (acc_rows / total) as f32;
         }
+        let blocks = (width + 1).div_ceil(BLOCK);
+        let col_coarse = (0..cells_y)
+            .flat_map(|cy| {
+                let row = &col_cdf[cy * (width + 1)..(cy + 1) * (width + 1)];
+                (0..blocks).map(move |b| row[b * BLOCK])
+            })
+            .collect();
         EnvMap {
             width,
             height,
@@ -106,6 +134,7 @@ impl EnvMap {
             row_cdf,
             col_cdf,
             cell_p,
+            col_coarse,
         }
     }
 
@@ -146,6 +175,11 @@ impl EnvMap {
     pub fn eval(&self, d: Vec3A) -> Vec3 {
         let (u, w) = Self::uv(self.to_local * Vec3::from(d));
         let (gx, gy) = self.grid(u, w);
+        self.at_grid(gx, gy)
+    }
+
+    /// The bilinear radiance at grid coordinates (gx, gy), times `scale`.
+    fn at_grid(&self, gx: f32, gy: f32) -> Vec3 {
         let w1 = self.width + 1;
         let x = (gx as usize).min(self.width - 1);
         let y = (gy as usize).min(self.height - 2);
@@ -156,8 +190,11 @@ impl EnvMap {
         (top * (1.0 - fy) + bottom * fy) * self.scale
     }
 
-    /// Samples a world direction toward the environment; (direction, solid-angle pdf).
-    pub fn sample(&self, s: Vec2) -> Option<(Vec3A, f32)> {
+    /// Samples a world direction toward the environment; (direction, solid-angle pdf,
+    /// radiance from it). The radiance is looked up at the sampled grid point, which
+    /// is where [`EnvMap::eval`] of the direction looks (to rounding), without the
+    /// direction's atan2 and acos.
+    pub fn sample(&self, s: Vec2) -> Option<(Vec3A, f32, Vec3)> {
         let cells_y = self.height - 1;
         let cy = self
             .row_cdf
@@ -171,7 +208,9 @@ impl EnvMap {
             0.5
         };
         let row = &self.col_cdf[cy * (self.width + 1)..(cy + 1) * (self.width + 1)];
-        let cx = row.partition_point(|&c| c <= s.y).clamp(1, self.width) - 1;
+        let blocks = (self.width + 1).div_ceil(BLOCK);
+        let coarse = &self.col_coarse[cy * blocks..(cy + 1) * blocks];
+        let cx = first_above(row, coarse, s.y).clamp(1, self.width) - 1;
         let (c0, c1) = (row[cx], row[cx + 1]);
         let fx = if c1 > c0 {
             ((s.y - c0) / (c1 - c0)).clamp(0.0, 1.0)
@@ -193,7 +232,11 @@ impl EnvMap {
         }
         let local = Vec3::new(sp * st, ct, -cp * st);
         let pdf = p * (self.width * cells_y) as f32 / (2.0 * PI * PI * st);
-        Some((Vec3A::from(self.to_world * local).normalize(), pdf))
+        Some((
+            Vec3A::from(self.to_world * local).normalize(),
+            pdf,
+            self.at_grid(gx, gy),
+        ))
     }
 
     /// The solid-angle pdf with which `sample` produces world direction `d`.
@@ -217,7 +260,8 @@ mod tests {
     use super::*;
 
     fn test_map() -> EnvMap {
-        let (w, h) = (8, 5);
+        // Wider than a block of the column search.
+        let (w, h) = (40, 5);
         let px: Vec<[f32; 3]> = (0..w * h)
             .map(|i| [(i % 7) as f32 * 0.3 + 0.1, (i % 3) as f32, 0.5])
             .collect();
@@ -252,19 +296,60 @@ mod tests {
         for i in 0..k {
             for j in 0..k {
                 let s = Vec2::new((i as f32 + 0.5) / k as f32, (j as f32 + 0.5) / k as f32);
-                if let Some((d, pdf)) = m.sample(s) {
+                if let Some((d, pdf, radiance)) = m.sample(s) {
                     assert!(
                         (m.pdf(d) - pdf).abs() <= 2e-3 * pdf,
                         "pdf {pdf} vs {}",
                         m.pdf(d)
                     );
-                    est += (m.eval(d) / pdf).as_dvec3();
+                    // The sample's radiance is the lookup of its direction.
+                    let looked_up = m.eval(d);
+                    assert!(
+                        (radiance - looked_up).abs().max_element()
+                            <= 1e-3 * looked_up.max_element().max(1e-3),
+                        "sampled {radiance} vs looked up {looked_up}"
+                    );
+                    est += (radiance / pdf).as_dvec3();
                 }
             }
         }
         est /= (k * k) as f64;
         let rel = ((est - integral) / integral).abs().max_element();
         assert!(rel < 5e-3, "E[L/pdf] = {est:?}, ∫L = {integral:?}");
+    }
+
+    /// The two-level column search finds what a search of the whole row finds, on rows
+    /// of every length around the block size, with flat runs (cells of zero weight)
+    /// and searched values equal to entries.
+    #[test]
+    fn column_search_matches_partition_point() {
+        let mut rng = crate::sampling::Pcg32::new(7, 3);
+        for len in 1..4 * BLOCK + 3 {
+            for _ in 0..50 {
+                let mut acc = 0.0f32;
+                let row: Vec<f32> = (0..len)
+                    .map(|i| {
+                        if i > 0 && rng.next_1d() < 0.6 {
+                            acc += rng.next_1d();
+                        }
+                        acc
+                    })
+                    .collect();
+                let coarse: Vec<f32> = row.iter().step_by(BLOCK).copied().collect();
+                for k in 0..40 {
+                    let s = if k % 2 == 0 {
+                        row[(rng.next_1d() * len as f32) as usize % len]
+                    } else {
+                        (rng.next_1d() * 1.2 - 0.1) * acc.max(1.0)
+                    };
+                    assert_eq!(
+                        first_above(&row, &coarse, s),
+                        row.partition_point(|&c| c <= s),
+                        "row {row:?}, s {s}"
+                    );
+                }
+            }
+        }
     }
 
     /// Pixel centres: column x at u = (x + ½)/W, row 0 at the +y pole.

@@ -211,13 +211,13 @@ impl Emitter {
                 })
             }
             Emitter::EnvMap(m) => {
-                let (d, pdf) = m.sample(s)?;
+                let (d, pdf, radiance) = m.sample(s)?;
                 let r = bsphere.radius.max((p_ref - bsphere.center).length());
                 Some(EmitterSample {
                     d,
                     p: p_ref + d * (2.0 * r),
                     pdf,
-                    weight: m.eval(d) / pdf,
+                    weight: radiance / pdf,
                     delta: false,
                 })
             }

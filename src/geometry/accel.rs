@@ -13,11 +13,13 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::ray::Ray as BvhRay;
 use obvhs::BvhBuildParams;
 
+mod backend;
 mod embree;
 pub mod embree_api;
 mod hit;
 mod node;
 
+pub use backend::{Backend, EMBREE_MIN_TRIANGLES};
 pub(super) use hit::cuboid_hit;
 pub use hit::{Crossing, CrossingList, Crossings, Hit, ShadowPass, MAX_CROSSINGS};
 
@@ -83,59 +85,6 @@ const BRUTE_FORCE_PRIMS: usize = 4;
 /// More of them go into the BVH with the triangles.
 const SEPARATE_ANALYTIC: usize = 16;
 
-/// Which ray caster traverses the triangles.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Backend {
-    /// obvhs's compressed wide BVH, with this module's node and triangle tests.
-    Obvhs,
-    /// Embree 3, when it loads (else obvhs). It is used where the BVH would hold
-    /// triangles only: with few primitives they are still tested one by one, and a BVH
-    /// that holds analytic shapes too (more than [`SEPARATE_ANALYTIC`]) stays obvhs's.
-    Embree,
-}
-
-impl Backend {
-    /// What `MEDIAREG_ACCEL` asks for (see [`embree_api`]): unset, Embree when it loads,
-    /// else obvhs; an error for a value it does not know or for `embree` where the
-    /// library does not load.
-    pub fn requested() -> Result<Backend, String> {
-        use embree_api::Request;
-        match embree_api::request()? {
-            Request::Obvhs => Ok(Backend::Obvhs),
-            Request::Auto => Ok(match embree_api::load() {
-                Ok(_) => Backend::Embree,
-                Err(_) => Backend::Obvhs,
-            }),
-            Request::Embree => match embree_api::load() {
-                Ok(_) => Ok(Backend::Embree),
-                Err(e) => Err(format!(
-                    "MEDIAREG_ACCEL=embree: Embree 3 does not load ({e}); {}",
-                    embree_api::INSTALL_HINT
-                )),
-            },
-        }
-    }
-
-    /// The ray caster a render of a triangle mesh uses, as `mediareg --version` says it:
-    /// "Embree 3.13.5" or "obvhs", with why where Embree is not used.
-    pub fn describe() -> String {
-        match Backend::requested() {
-            Ok(Backend::Embree) => match embree_api::load() {
-                Ok(api) => format!("Embree {} ({})", api.version, api.path),
-                Err(e) => format!("obvhs (Embree: {e})"),
-            },
-            Ok(Backend::Obvhs) => match embree_api::load() {
-                Ok(_) => "obvhs (MEDIAREG_ACCEL=obvhs)".to_string(),
-                Err(e) => format!(
-                    "obvhs (Embree 3 does not load: {e}; for the faster one, {})",
-                    embree_api::INSTALL_HINT
-                ),
-            },
-            Err(e) => format!("obvhs ({e})"),
-        }
-    }
-}
-
 pub struct Accel {
     /// obvhs's BVH (empty where Embree traverses).
     bvh: CwBvh,
@@ -181,7 +130,15 @@ impl Accel {
             }
         }
         if self.traverses_bvh() {
-            "obvhs".to_string()
+            if self.mixed || self.prims.len() >= EMBREE_MIN_TRIANGLES {
+                "obvhs".to_string()
+            } else {
+                format!(
+                    "obvhs ({} triangles: fewer than the {EMBREE_MIN_TRIANGLES} Embree pays \
+                     for)",
+                    self.prims.len()
+                )
+            }
         } else {
             "each shape tested in turn (too few for a BVH)".to_string()
         }
@@ -268,7 +225,10 @@ impl Accel {
             }
         }
         // Embree builds its own BVH (from the meshes, below): prims stay in input order.
-        let embree_wanted = backend == Backend::Embree && !mixed && prims.len() > BRUTE_FORCE_PRIMS;
+        let embree_wanted = backend == Backend::Embree
+            && !mixed
+            && prims.len() > BRUTE_FORCE_PRIMS
+            && prims.len() >= EMBREE_MIN_TRIANGLES;
         let (embree, warning) = match embree_wanted.then(|| Self::build_embree(shapes, &prims)) {
             Some(Ok(e)) => (Some(e), None),
             Some(Err(e)) => (None, Some(format!("{e}; rays are cast with obvhs instead"))),

@@ -169,13 +169,29 @@ impl ImageBlock {
         if x1 < x0 as i64 || y1 < y0 as i64 {
             return;
         }
+        // The filter is separable: a row's weights are w(x)·w(y), so the w(x) are
+        // evaluated once, not once per row (a Gaussian's exp dominated the splat).
+        const MAX_COLUMNS: usize = 16;
+        let columns = x1 as usize + 1 - x0;
+        let mut wx = [0.0f32; MAX_COLUMNS];
+        let cached = columns <= MAX_COLUMNS;
+        if cached {
+            for (i, w) in wx[..columns].iter_mut().enumerate() {
+                *w = filter.eval((x0 + i) as f32 - cx);
+            }
+        }
         for y in y0..=y1 as usize {
             let wy = filter.eval(y as f32 - cy);
             if wy == 0.0 {
                 continue;
             }
             for x in x0..=x1 as usize {
-                let w = wy * filter.eval(x as f32 - cx);
+                let w = wy
+                    * if cached {
+                        wx[x - x0]
+                    } else {
+                        filter.eval(x as f32 - cx)
+                    };
                 let p = &mut self.data[y * fw + x];
                 p[0] += w * l.x;
                 p[1] += w * l.y;
