@@ -43,11 +43,14 @@ impl Backend {
     }
 
     /// The ray caster a render of a triangle mesh uses, as `mediareg --version` says it:
-    /// "Embree 3.13.5" or "obvhs", with why where Embree is not used.
+    /// Embree (its version and file) or obvhs, with why where Embree is not used.
     pub fn describe() -> String {
         match Backend::requested() {
             Ok(Backend::Embree) => match embree_api::load() {
-                Ok(api) => format!("Embree {} ({})", api.version, api.path),
+                Ok(api) => format!(
+                    "Embree {} ({}) for meshes of {EMBREE_MIN_TRIANGLES} triangles or more",
+                    api.version, api.path
+                ),
                 Err(e) => format!("obvhs (Embree: {e})"),
             },
             Ok(Backend::Obvhs) => match embree_api::load() {

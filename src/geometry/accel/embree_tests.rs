@@ -132,6 +132,35 @@ fn backends(g: &[Geometry]) -> (Accel, Accel) {
     (ours, embree)
 }
 
+/// Embree is asked for but not used below [`EMBREE_MIN_TRIANGLES`] triangles (a call
+/// into it costs more than obvhs's traversal of so few), and used from there on.
+#[test]
+fn embree_starts_at_its_triangle_threshold() {
+    let mesh = |n_lat: u32, n_lon: u32| {
+        let r = uv_sphere(Vec3A::ZERO, 1.0, n_lat, n_lon);
+        Geometry::Mesh(
+            TriangleMesh::new(r, &Mat4::IDENTITY, true, false, Path::new("test"))
+                .expect("a valid mesh"),
+        )
+    };
+    // 2 n_lon (n_lat − 1) triangles.
+    for (n_lat, n_lon, want) in [(4, 8, Backend::Obvhs), (17, 32, Backend::Embree)] {
+        let g = mesh(n_lat, n_lon);
+        let Geometry::Mesh(m) = &g else {
+            unreachable!()
+        };
+        let below = m.triangles.len() < EMBREE_MIN_TRIANGLES;
+        assert_eq!(
+            below,
+            want == Backend::Obvhs,
+            "{} triangles",
+            m.triangles.len()
+        );
+        let accel = Accel::build_with(&[&g], Backend::Embree);
+        assert_eq!(accel.backend(), want, "{} triangles", m.triangles.len());
+    }
+}
+
 /// The same closest hits and occlusion answers, unfiltered and filtered.
 #[test]
 fn closest_hit_and_occlusion_match_obvhs() {
