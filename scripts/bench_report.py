@@ -23,9 +23,10 @@ def simd(features):
 
 
 def accel_of(renderer):
-    """The MEDIAREG_ACCEL a mediareg renderer runs with (None: unset, the default)."""
+    """The MEDIAREG_ACCEL a mediareg renderer runs with (None: unset, the default);
+    `mediareg_embree_1thread` is the Embree one on one thread (scripts/cast_bound)."""
     for a in ACCELS:
-        if renderer == f"mediareg_{a}":
+        if renderer.removesuffix("_1thread") == f"mediareg_{a}":
             return a
     return None
 

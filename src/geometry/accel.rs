@@ -130,14 +130,17 @@ impl Accel {
             }
         }
         if self.traverses_bvh() {
-            if self.mixed || self.prims.len() >= EMBREE_MIN_TRIANGLES {
-                "obvhs".to_string()
-            } else {
+            let below_threshold = !self.mixed
+                && self.prims.len() < EMBREE_MIN_TRIANGLES
+                && Backend::requested() == Ok(Backend::Embree);
+            if below_threshold {
                 format!(
                     "obvhs ({} triangles: fewer than the {EMBREE_MIN_TRIANGLES} Embree pays \
                      for)",
                     self.prims.len()
                 )
+            } else {
+                "obvhs".to_string()
             }
         } else {
             "each shape tested in turn (too few for a BVH)".to_string()
@@ -225,10 +228,10 @@ impl Accel {
             }
         }
         // Embree builds its own BVH (from the meshes, below): prims stay in input order.
-        let embree_wanted = backend == Backend::Embree
-            && !mixed
-            && prims.len() > BRUTE_FORCE_PRIMS
-            && prims.len() >= EMBREE_MIN_TRIANGLES;
+        // (Above the threshold, the triangles are never tested one by one.)
+        const _: () = assert!(EMBREE_MIN_TRIANGLES > BRUTE_FORCE_PRIMS);
+        let embree_wanted =
+            backend == Backend::Embree && !mixed && prims.len() >= EMBREE_MIN_TRIANGLES;
         let (embree, warning) = match embree_wanted.then(|| Self::build_embree(shapes, &prims)) {
             Some(Ok(e)) => (Some(e), None),
             Some(Err(e)) => (None, Some(format!("{e}; rays are cast with obvhs instead"))),
