@@ -7,8 +7,10 @@ use mediareg::scene::ray_log::{time_casts, Cast, LoggedRay, RayLog};
 use mediareg::scene::Scene;
 use mediareg::BuildOverrides;
 
-fn temp(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("mediareg_ray_log_{}", std::process::id()));
+/// A directory per test: the tests run in parallel threads of one process, and one
+/// writing `scene.xml` while the other reads it made the reader see an empty file.
+fn temp(test: &str, name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("mediareg_ray_log_{}_{test}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
 }
@@ -43,8 +45,9 @@ fn scene(with_log: bool) -> Scene {
             obj += &format!("f {} {} {}\nf {} {} {}\n", v, v + 1, v + 5, v, v + 5, v + 4);
         }
     }
-    std::fs::write(temp("wall.obj"), obj).unwrap();
-    let path = temp("scene.xml");
+    let test = if with_log { "logged" } else { "plain" };
+    std::fs::write(temp(test, "wall.obj"), obj).unwrap();
+    let path = temp(test, "scene.xml");
     std::fs::write(&path, xml).unwrap();
     let mut scene =
         mediareg::load_scene(&path, &Default::default(), &BuildOverrides::default()).unwrap();
