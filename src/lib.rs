@@ -5,7 +5,7 @@
 //! clearance, emitter selection: the render state) → `integrator::render`
 //! (→ `image::Image`) → `image` (EXR/PNG); `regularize` and `report` drive renders.
 //!
-//! Modules import only from those below them, lowest first: `error`, `sampling`,
+//! Modules import only from those below them, lowest first: `error`, `simd`, `sampling`,
 //! `image`, `denoise`, `xml`, `geometry`, `texture`, `medium`, `bsdf`, `emitter`, `scene`, `load`,
 //! `integrator`, `regularize`, `report` (`tests/layering.rs` holds the list and checks
 //! it, with no import circle inside a module and no file over 800 lines).
@@ -23,6 +23,7 @@ pub mod regularize;
 pub mod report;
 pub mod sampling;
 pub mod scene;
+pub mod simd;
 pub mod texture;
 pub mod xml;
 

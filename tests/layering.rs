@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 /// The library's top-level modules, lowest first. A module may use only those before it.
 const LAYERS: &[&str] = &[
     "error",      // Loc, SceneError
+    "simd",       // f32 lanes in a register
     "sampling",   // Pcg32, warps, MIS weight
     "image",      // Image, EXR/PNG, statistics
     "denoise",    // denoisers on images (OIDN)

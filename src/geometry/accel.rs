@@ -2,7 +2,8 @@
 //! analytic shapes tested one by one beside it when there are few of them, else in it
 //! as one primitive each. Mitsuba `cube`s, when few, are tested beside it as boxes
 //! ([`Cuboid`]) instead of as 12 triangles in it. Where Embree 3 is installed, a BVH of
-//! triangles only is Embree's instead ([`Backend`], [`embree_api`]).
+//! triangles only is Embree's instead ([`Backend`], [`embree_api`]); a few dozen
+//! triangles are tested all at once in SIMD lanes instead ([`lanes`]).
 
 use std::time::Duration;
 
@@ -17,6 +18,7 @@ mod backend;
 mod embree;
 pub mod embree_api;
 mod hit;
+mod lanes;
 mod node;
 
 pub use backend::{Backend, EMBREE_MIN_TRIANGLES};
@@ -26,6 +28,7 @@ pub use hit::{Crossing, CrossingList, Crossings, Hit, ShadowPass, MAX_CROSSINGS}
 use super::cuboid::Cuboid;
 use super::shape::Geometry;
 use super::Bounds;
+use lanes::TriangleLanes;
 use node::{node_hits, traversal_ray};
 
 /// Which primitive of which shape; `index` is [`ANALYTIC`] for a sphere, rectangle or
@@ -101,6 +104,9 @@ pub struct Accel {
     cuboids: Vec<Cuboid>,
     /// Whether the BVH holds analytic shapes too (else triangles only).
     mixed: bool,
+    /// The BVH's triangles in SIMD lanes, tested all at once instead of traversing it
+    /// (where there are few: [`lanes::MAX_TRIANGLES`]).
+    lanes: Option<TriangleLanes>,
     pub bounds: Bounds,
     /// Why the requested backend was not used, when it could not be built (Embree
     /// failed): for the scene's warnings.
@@ -129,7 +135,12 @@ impl Accel {
                 return format!("Embree {}", api.version);
             }
         }
-        if self.traverses_bvh() {
+        if let Some(l) = &self.lanes {
+            format!(
+                "{} triangles tested in SIMD lanes (too few for a BVH)",
+                l.len()
+            )
+        } else if self.traverses_bvh() {
             let below_threshold = !self.mixed
                 && self.prims.len() < EMBREE_MIN_TRIANGLES
                 && Backend::requested() == Ok(Backend::Embree);
@@ -287,6 +298,10 @@ impl Accel {
                 triangles.extend((0..m.triangles.len() as u32).map(|ti| leaf_triangle(m, ti)));
             }
         }
+        let in_lanes = !mixed && !embree_wanted && prims.len() > BRUTE_FORCE_PRIMS;
+        let lanes = (in_lanes && prims.len() <= lanes::MAX_TRIANGLES).then(|| {
+            TriangleLanes::new(triangles[..prims.len()].iter().map(|t| (t.p0, t.e1, t.e2)))
+        });
         Accel {
             bvh,
             embree,
@@ -295,6 +310,7 @@ impl Accel {
             analytic,
             cuboids,
             mixed,
+            lanes,
             bounds,
             warning,
         }
@@ -509,6 +525,10 @@ impl Accel {
             };
             return found.or(best);
         }
+        if let Some(l) = &self.lanes {
+            let found = l.closest(o, d, t_best, |i| keep(self.prims[i].shape));
+            return found.map(|h| self.hit(h.index, h.t, h.u, h.v)).or(best);
+        }
         let (ray, back) = traversal_ray(o, d, t_best);
         let mut best_prim = None;
         self.traverse(ray, |ray_tmax, id| {
@@ -676,20 +696,22 @@ impl Accel {
             });
             return answer.unwrap_or(Crossings::Found);
         }
-        let (ray, _) = traversal_ray(o, d, tmax);
         let mut answer = None;
+        let mut each = |id: usize, t: f32| {
+            answer = record(self.triangle_crossing(shapes, self.prims[id].shape, id, t, d));
+            answer.is_none()
+        };
+        if let Some(l) = &self.lanes {
+            l.each_hit(o, d, tmax, each);
+            return answer.unwrap_or(Crossings::Found);
+        }
+        let (ray, _) = traversal_ray(o, d, tmax);
         self.traverse(ray, |_, id| {
-            let Some((t, _, _)) = self.triangles[id].intersect(o, d, tmax) else {
-                return f32::INFINITY;
-            };
-            match record(self.triangle_crossing(shapes, self.prims[id].shape, id, t, d)) {
-                // Not a closer hit for the traversal: the ray's extent stays.
-                None => f32::INFINITY,
-                // A distance of 0 culls every remaining node: the traversal ends.
-                found => {
-                    answer = found;
-                    0.0
-                }
+            match self.triangles[id].intersect(o, d, tmax) {
+                // Not a closer hit for the traversal: the ray's extent stays; a distance
+                // of 0 culls every remaining node, and the traversal ends.
+                Some((t, _, _)) if !each(id, t) => 0.0,
+                _ => f32::INFINITY,
             }
         });
         answer.unwrap_or(Crossings::Found)
@@ -755,6 +777,9 @@ impl Accel {
         }
         if let Some(e) = &self.embree {
             return e.occluded(o, d, tmax);
+        }
+        if let Some(l) = &self.lanes {
+            return l.any_hit(o, d, tmax);
         }
         let (ray, back) = traversal_ray(o, d, tmax);
         let mut blocked = false;
