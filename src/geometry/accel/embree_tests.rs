@@ -24,7 +24,7 @@ fn raw(positions: Vec<Vec3A>, triangles: Vec<[u32; 3]>) -> RawMesh {
 }
 
 /// A closed latitude-longitude sphere mesh (shared vertices, poles as fans).
-fn uv_sphere(center: Vec3A, r: f32, n_lat: u32, n_lon: u32) -> RawMesh {
+pub(super) fn uv_sphere(center: Vec3A, r: f32, n_lat: u32, n_lon: u32) -> RawMesh {
     let mut p = vec![center + Vec3A::Z * r, center - Vec3A::Z * r];
     for i in 1..n_lat {
         let theta = std::f32::consts::PI * i as f32 / n_lat as f32;
@@ -98,7 +98,7 @@ fn near_edge(h: &Hit) -> bool {
 
 /// Random rays: from random points (bounded and not), and from points just off the
 /// surfaces the previous ray hit, as a path's next segment starts.
-fn rays(g: &[Geometry], accel: &Accel, n: usize) -> Vec<(Vec3A, Vec3A, f32)> {
+pub(super) fn rays(g: &[Geometry], accel: &Accel, n: usize) -> Vec<(Vec3A, Vec3A, f32)> {
     let mut rng = Pcg32::new(23, 9);
     let mut out = Vec::with_capacity(n);
     let mut from: Option<(Vec3A, Vec3A)> = None;

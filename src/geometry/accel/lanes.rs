@@ -1,7 +1,7 @@
 //! Triangles in SIMD lanes: a scene of few triangles tested all at once, a register's
 //! width at a time (16 with AVX-512, else 8), instead of traversing a BVH over them.
 //!
-//! A Cornell box (a few dozen triangles) spent about 40% of its render in the BVH's
+//! A Cornell box (a few dozen triangles) spent much of its render in the BVH's
 //! traversal: each cast tests a few node boxes and a handful of triangles, one by one,
 //! every test a branch the CPU cannot predict. Here every triangle is tested, a block
 //! of lanes at a time (Möller–Trumbore in lanes), and the only branch left is one per
@@ -13,9 +13,9 @@ use glam::Vec3A;
 use crate::simd::{Lanes, Mask, WIDTH};
 
 /// Up to this many triangles (eight registers' worth) a scene's triangles are tested
-/// in lanes rather than by traversing a BVH: with 16 lanes, a Cornell box of 38
-/// triangles rendered 15% faster, one of 118 5%, and one of 158 as fast
-/// (docs/performance.md, "Triangles in lanes").
+/// in lanes rather than by traversing a BVH; beyond about that, testing them all costs
+/// more than the traversal saves (the sweep in docs/performance.md, "Triangles in
+/// lanes").
 pub(super) const MAX_TRIANGLES: usize = 8 * WIDTH;
 
 /// A block of triangles: each one's vertex p0 and edges e1 = p1 − p0, e2 = p2 − p0,

@@ -224,3 +224,73 @@ fn traversal_speed() {
         );
     }
 }
+
+/// Triangles in lanes answer what the BVH over the same triangles does: the same
+/// closest hit (distance and barycentrics to the bit; the same triangle unless two lie
+/// at that distance, on a shared edge), the same occlusion and the same crossings, on
+/// rays from random points and from the meshes' surfaces. Two meshes (one with its
+/// normals flipped, so crossings take both sides) of few enough triangles for lanes
+/// at either register width, and a sphere beside them that blocks shadow rays.
+#[test]
+fn lanes_answer_what_the_bvh_does() {
+    use super::embree_tests::{rays, uv_sphere};
+    let mesh = |r, flip| {
+        let m = TriangleMesh::new(r, &Mat4::IDENTITY, true, flip, Path::new("test"));
+        Geometry::Mesh(m.expect("a valid mesh"))
+    };
+    // 2 n_lon (n_lat − 1) triangles: 32 and 24.
+    let g = vec![
+        mesh(uv_sphere(Vec3A::ZERO, 1.0, 3, 8), false),
+        mesh(uv_sphere(Vec3A::new(1.5, 0.3, 0.0), 0.5, 3, 6), true),
+        Geometry::Sphere(Sphere {
+            center: Vec3A::new(-1.5, 1.0, 0.0),
+            radius: 0.4,
+            flip_normals: false,
+            axes: Mat3A::IDENTITY,
+        }),
+    ];
+    let refs: Vec<&Geometry> = g.iter().collect();
+    let in_lanes = Accel::build_with(&refs, Backend::Obvhs);
+    assert!(in_lanes.lanes.is_some(), "{}", in_lanes.describe());
+    let mut bvh = Accel::build_with(&refs, Backend::Obvhs);
+    bvh.lanes = None;
+    let pass = [ShadowPass::Passes, ShadowPass::Passes, ShadowPass::Blocks];
+    let (mut hits, mut found, mut ties) = (0, 0, 0);
+    let (mut la, mut lb) = (CrossingList::new(), CrossingList::new());
+    for (o, d, tmax) in rays(&g, &in_lanes, 20_000) {
+        let key = |h: Hit| (h.t, h.u, h.v, h.shape, h.leaf);
+        let a = in_lanes.intersect(&g, o, d, tmax).map(key);
+        let b = bvh.intersect(&g, o, d, tmax).map(key);
+        if a != b {
+            let (a, b) = (a.unwrap(), b.unwrap());
+            assert_eq!(a.0, b.0, "ray {o} {d} {tmax}");
+            ties += 1;
+        }
+        hits += a.is_some() as u32;
+        assert_eq!(
+            in_lanes.occluded(&g, o, d, tmax),
+            bvh.occluded(&g, o, d, tmax)
+        );
+        let ca = in_lanes.crossings(&g, &pass, o, d, tmax, &mut la);
+        let cb = bvh.crossings(&g, &pass, o, d, tmax, &mut lb);
+        assert_eq!(ca, cb, "ray {o} {d} {tmax}");
+        if ca == Crossings::Found {
+            let sorted = |l: &CrossingList| {
+                let mut v: Vec<(f32, u32, bool)> =
+                    l.iter().map(|c| (c.t, c.shape, c.along_normal)).collect();
+                v.sort_by(|x, y| x.0.total_cmp(&y.0));
+                v
+            };
+            assert_eq!(sorted(&la), sorted(&lb), "ray {o} {d} {tmax}");
+            found += !la.is_empty() as u32;
+        }
+    }
+    assert!(
+        hits > 1_000 && found > 1_000,
+        "{hits} hits, {found} rays with crossings"
+    );
+    assert!(
+        ties < 20,
+        "{ties} hits on another triangle at the same distance"
+    );
+}
