@@ -201,7 +201,8 @@ fn shadow_transmittance_stepwise(
 /// Emitter sampling from the medium point `p` of `m` (in `medium`), light leaving it
 /// against `d_in`: phase · L · T / p_select, MIS-weighted (power heuristic) against
 /// phase sampling; zero when nothing arrives. `free` is a distance `p` is known to lie
-/// from every surface (0 if none is known), for the shadow ray's roulette.
+/// from every surface (the clearance there, or 0 if none is known), for the shadow
+/// ray's roulette.
 #[inline]
 fn medium_emitter_sample(
     scene: &Scene,
@@ -237,7 +238,6 @@ fn medium_emitter_sample(
         None => m.sigma_t.min_element(),
         Some(_) => 0.0,
     };
-    let free = free.max(scene.clearance.at(p));
     let q = if sigma_min > 0.0 && free > 0.0 {
         (-sigma_min * dist.min(free)).exp()
     } else {
@@ -390,6 +390,8 @@ pub fn sample(
     let mut medium = scene.camera_medium;
     let mut specular_chain = !s.hide_emitters;
     let mut last = LastScatter { p: o, pdf: 1.0 };
+    // The clearance at `ray_o`, where already looked up (see the free flight).
+    let mut origin_clearance: Option<f32> = None;
     let hero = ((rng.next_1d() * 3.0) as usize).min(2);
     let (mut ray_o, mut ray_d, mut ray_tmax) = (o, d, tmax);
 
@@ -436,6 +438,9 @@ pub fn sample(
             let m: &HomogeneousMedium = &scene.media[mi as usize];
             // The render's albedo of this medium (the scene's unless overridden).
             let albedo = settings.albedo[mi as usize];
+            // The clearance at the flight's origin, where the vertex it starts from
+            // looked it up (for its emitter sample): the same point, the same value.
+            let known_clearance = origin_clearance.take();
             let (t, clearance) = if let Some(het) = m.heterogeneous.as_deref() {
                 // ---- Delta tracking through a heterogeneous medium ----
                 // The surface that ends the ray, then the first real collision before
@@ -471,7 +476,7 @@ pub fn sample(
                 // an exact one. Shadow rays are still played against the grid's alone
                 // (below): against the convex one, the medium cube's shadow roulette cost
                 // more in variance (+6% MSE) than it saved in time (−2%).
-                let clearance = scene.clearance.at(ray_o);
+                let clearance = known_clearance.unwrap_or_else(|| scene.clearance.at(ray_o));
                 let convex = scene.convex_media[mi as usize].as_ref();
                 let skip_within = convex.map_or(clearance, |b| {
                     b.clearance(&scene.geometries, ray_o).max(clearance)
@@ -569,8 +574,18 @@ pub fn sample(
                 valid = true;
                 let p = ray_o + ray_d * t;
                 // ---- Emitter sampling from the medium vertex ----
-                // p lies within the flight's clearance less t.
-                let x = medium_emitter_sample(scene, m, medium, p, ray_d, clearance - t, rng);
+                // p lies within the flight's clearance less t, and within its own, which
+                // the next flight (from p) starts with. A heterogeneous medium has no
+                // use for either: its shadow rays are not rouletted, and its flights are
+                // cast in full.
+                let free = if m.heterogeneous.is_none() {
+                    let at_p = scene.clearance.at(p);
+                    origin_clearance = Some(at_p);
+                    (clearance - t).max(at_p)
+                } else {
+                    0.0
+                };
+                let x = medium_emitter_sample(scene, m, medium, p, ray_d, free, rng);
                 if x != Vec3::ZERO {
                     result += beta * x;
                     d_result += x * match settings.gradient {
