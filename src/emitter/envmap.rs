@@ -244,6 +244,20 @@ impl EnvMap {
         let v = self.to_local * Vec3::from(d);
         let (u, w) = Self::uv(v);
         let (gx, gy) = self.grid(u, w);
+        self.pdf_at(v, gx, gy)
+    }
+
+    /// [`EnvMap::eval`] and [`EnvMap::pdf`] of one direction (a ray that escapes after
+    /// a BSDF or phase sample needs both), its texel found once: the same values.
+    pub fn eval_and_pdf(&self, d: Vec3A) -> (Vec3, f32) {
+        let v = self.to_local * Vec3::from(d);
+        let (u, w) = Self::uv(v);
+        let (gx, gy) = self.grid(u, w);
+        (self.at_grid(gx, gy), self.pdf_at(v, gx, gy))
+    }
+
+    /// The pdf of the local direction `v` at grid coordinates (gx, gy).
+    fn pdf_at(&self, v: Vec3, gx: f32, gy: f32) -> f32 {
         let cells_y = self.height - 1;
         let cx = (gx as usize).min(self.width - 1);
         let cy = (gy as usize).min(cells_y - 1);

@@ -249,6 +249,23 @@ impl Emitter {
         }
     }
 
+    /// [`Emitter::eval`] and [`Emitter::pdf_direction`] of one ray's end, what the MIS
+    /// weight of an emitter hit needs: the same values, an environment map's texel found
+    /// once.
+    pub fn eval_and_pdf(
+        &self,
+        p_ref: Vec3A,
+        p: Vec3A,
+        n: Vec3A,
+        d: Vec3A,
+        shapes: &[Geometry],
+    ) -> (Vec3, f32) {
+        match self {
+            Emitter::EnvMap(m) => m.eval_and_pdf(d),
+            _ => (self.eval(n, d), self.pdf_direction(p_ref, p, n, d, shapes)),
+        }
+    }
+
     /// Solid-angle pdf that `sample_direction` from `p_ref` produces the point `p` with
     /// (shading) normal `n` on this emitter (area lights), or direction `d` (environment).
     pub fn pdf_direction(

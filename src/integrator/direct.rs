@@ -98,14 +98,14 @@ pub fn sample(
         let Some(ei) = emitter else { continue };
         let e = &scene.emitters[ei as usize];
         let (p_end, n_end) = hit.map_or((h.p, Vec3A::ZERO), |g| (g.p, g.sh_frame.n));
-        let em_pdf = if bs.delta {
-            0.0
+        let (le, em_pdf) = if bs.delta {
+            (e.eval(n_end, wo), 0.0)
         } else {
-            e.pdf_direction(h.p, p_end, n_end, wo, &scene.geometries)
-                * scene.emitter_selection.pdf(h.p, ei as usize)
+            let (le, pdf) = e.eval_and_pdf(h.p, p_end, n_end, wo, &scene.geometries);
+            (le, pdf * scene.emitter_selection.pdf(h.p, ei as usize))
         };
         let w = mis_weight(bs.pdf * frac_bsdf, em_pdf * frac_lum) / bsdf_samples as f32;
-        result += bs.weight * e.eval(n_end, wo) * w;
+        result += bs.weight * le * w;
     }
     done(result, true)
 }

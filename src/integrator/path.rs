@@ -57,13 +57,12 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
             let e = &scene.emitters[ei as usize];
             // Where the ray ended: a surface point and its normal, or (environment) none.
             let (p_end, n_end) = si.map_or((prev.p, Vec3A::ZERO), |h| (h.p, h.sh_frame.n));
-            let le = e.eval(n_end, ray_d);
             // After a Dirac bounce emitter sampling could not have produced this path.
-            let em_pdf = if prev.delta {
-                0.0
+            let (le, em_pdf) = if prev.delta {
+                (e.eval(n_end, ray_d), 0.0)
             } else {
-                e.pdf_direction(prev.p, p_end, n_end, ray_d, &scene.geometries)
-                    * scene.emitter_selection.pdf(prev.p, ei as usize)
+                let (le, pdf) = e.eval_and_pdf(prev.p, p_end, n_end, ray_d, &scene.geometries);
+                (le, pdf * scene.emitter_selection.pdf(prev.p, ei as usize))
             };
             let l = throughput * le * mis_weight(prev.bsdf_pdf, em_pdf);
             result += l;

@@ -294,15 +294,12 @@ fn emission_seen(
     }
     let e = &scene.emitters[ei as usize];
     let (p_end, n_end) = hit.map_or((last.p, Vec3A::ZERO), |h| (h.p, h.sh_frame.n));
-    let le = e.eval(n_end, ray_d);
-    let w = if depth == 0 || specular_chain {
-        1.0
-    } else {
-        let em_pdf = e.pdf_direction(last.p, p_end, n_end, ray_d, &scene.geometries)
-            * scene.emitter_selection.pdf(last.p, ei as usize);
-        mis_weight(last.pdf, em_pdf)
-    };
-    le * w
+    if depth == 0 || specular_chain {
+        return e.eval(n_end, ray_d);
+    }
+    let (le, pdf) = e.eval_and_pdf(last.p, p_end, n_end, ray_d, &scene.geometries);
+    let em_pdf = pdf * scene.emitter_selection.pdf(last.p, ei as usize);
+    le * mis_weight(last.pdf, em_pdf)
 }
 
 /// Which derivative to estimate beside the radiance.
