@@ -6,18 +6,17 @@
 //! Only what the lane kernels use is here; each operation is one instruction (or two
 //! on the narrow path) and rounds as its scalar counterpart does.
 
-/// A mask of lanes: bit k for lane k.
-pub type Mask = u32;
-
-pub use imp::{Lanes, WIDTH};
+pub use imp::{Lanes, Mask, WIDTH};
 
 #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
 mod imp {
-    use super::Mask;
     use std::arch::x86_64::*;
 
     /// Lanes in a register.
     pub const WIDTH: usize = 16;
+
+    /// A mask of lanes: bit k for lane k.
+    pub type Mask = u32;
 
     /// Sixteen f32 lanes (one AVX-512 register).
     #[derive(Clone, Copy, Debug)]
@@ -109,11 +108,13 @@ mod imp {
 
 #[cfg(not(all(target_arch = "x86_64", target_feature = "avx512f")))]
 mod imp {
-    use super::Mask;
     use wide::{f32x8, CmpGe, CmpGt, CmpLe, CmpLt};
 
     /// Lanes in a register.
     pub const WIDTH: usize = 8;
+
+    /// A mask of lanes: bit k for lane k.
+    pub type Mask = u32;
 
     /// Eight f32 lanes (`wide`'s f32x8).
     #[derive(Clone, Copy, Debug)]

@@ -20,6 +20,7 @@ pub mod embree_api;
 mod hit;
 mod lanes;
 mod node;
+mod triangle;
 
 pub use backend::{Backend, EMBREE_MIN_TRIANGLES};
 pub(super) use hit::cuboid_hit;
@@ -30,6 +31,7 @@ use super::shape::Geometry;
 use super::Bounds;
 use lanes::TriangleLanes;
 use node::{node_hits, traversal_ray};
+use triangle::LeafTriangle;
 
 /// Which primitive of which shape; `index` is [`ANALYTIC`] for a sphere, rectangle or
 /// disk (one primitive per shape).
@@ -40,42 +42,6 @@ struct PrimRef {
 }
 
 const ANALYTIC: u32 = u32::MAX;
-
-/// A triangle as the intersection test reads it: `p0` and the edges `e1 = p1 − p0`,
-/// `e2 = p2 − p0`, precomputed and stored in the BVH's leaf order, so that a leaf's
-/// triangles are one contiguous read instead of an index lookup and three vertex loads
-/// each (a ray in a 100k-triangle mesh is bound by memory latency, not arithmetic).
-#[derive(Clone, Copy, Debug)]
-struct LeafTriangle {
-    p0: Vec3A,
-    e1: Vec3A,
-    e2: Vec3A,
-}
-
-impl LeafTriangle {
-    /// Möller–Trumbore: (t, u, v), u and v the barycentrics of vertices 1 and 2.
-    #[inline(always)]
-    fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(f32, f32, f32)> {
-        let pv = d.cross(self.e2);
-        let det = self.e1.dot(pv);
-        if det == 0.0 {
-            return None;
-        }
-        let inv = 1.0 / det;
-        let tv = o - self.p0;
-        let u = tv.dot(pv) * inv;
-        if !(0.0..=1.0).contains(&u) {
-            return None;
-        }
-        let qv = tv.cross(self.e1);
-        let v = d.dot(qv) * inv;
-        if v < 0.0 || u + v > 1.0 {
-            return None;
-        }
-        let t = self.e2.dot(qv) * inv;
-        (t > 0.0 && t < tmax).then_some((t, u, v))
-    }
-}
 
 /// Up to this many primitives, testing each beats traversing the BVH: the furnace (one
 /// sphere) renders ~30% faster; the medium cube (14 primitives) ~10% slower, so the
@@ -136,10 +102,7 @@ impl Accel {
             }
         }
         if let Some(l) = &self.lanes {
-            format!(
-                "{} triangles tested in SIMD lanes (too few for a BVH)",
-                l.len()
-            )
+            format!("{} triangles tested in SIMD lanes", l.len())
         } else if self.traverses_bvh() {
             let below_threshold = !self.mixed
                 && self.prims.len() < EMBREE_MIN_TRIANGLES
@@ -299,9 +262,8 @@ impl Accel {
             }
         }
         let in_lanes = !mixed && !embree_wanted && prims.len() > BRUTE_FORCE_PRIMS;
-        let lanes = (in_lanes && prims.len() <= lanes::MAX_TRIANGLES).then(|| {
-            TriangleLanes::new(triangles[..prims.len()].iter().map(|t| (t.p0, t.e1, t.e2)))
-        });
+        let in_lanes = in_lanes && prims.len() <= lanes::MAX_TRIANGLES;
+        let lanes = in_lanes.then(|| TriangleLanes::new(&triangles[..prims.len()]));
         Accel {
             bvh,
             embree,

@@ -10,6 +10,7 @@
 
 use glam::Vec3A;
 
+use super::triangle::LeafTriangle;
 use crate::simd::{Lanes, Mask, WIDTH};
 
 /// Up to this many triangles (eight registers' worth) a scene's triangles are tested
@@ -68,13 +69,12 @@ fn splat(v: Vec3A) -> [Lanes; 3] {
 }
 
 impl TriangleLanes {
-    /// `triangles`: (p0, e1, e2) of each.
-    pub fn new(triangles: impl ExactSizeIterator<Item = (Vec3A, Vec3A, Vec3A)>) -> Self {
+    pub fn new(triangles: &[LeafTriangle]) -> Self {
         let count = triangles.len();
         let mut lanes = vec![[[0f32; WIDTH]; 9]; count.div_ceil(WIDTH)];
-        for (i, (p0, e1, e2)) in triangles.enumerate() {
+        for (i, t) in triangles.iter().enumerate() {
             let block = &mut lanes[i / WIDTH];
-            for (k, v) in [p0, e1, e2].iter().enumerate() {
+            for (k, v) in [t.p0, t.e1, t.e2].iter().enumerate() {
                 for axis in 0..3 {
                     block[3 * k + axis][i % WIDTH] = v[axis];
                 }
@@ -215,47 +215,26 @@ mod tests {
     use super::*;
     use crate::sampling::Pcg32;
 
-    /// The scalar test the lanes must agree with (`LeafTriangle::intersect`'s
-    /// arithmetic).
-    fn scalar(p0: Vec3A, e1: Vec3A, e2: Vec3A, o: Vec3A, d: Vec3A, tmax: f32) -> Option<f32> {
-        let pv = d.cross(e2);
-        let det = e1.dot(pv);
-        if det == 0.0 {
-            return None;
-        }
-        let inv = 1.0 / det;
-        let tv = o - p0;
-        let u = tv.dot(pv) * inv;
-        if !(0.0..=1.0).contains(&u) {
-            return None;
-        }
-        let qv = tv.cross(e1);
-        let v = d.dot(qv) * inv;
-        if v < 0.0 || u + v > 1.0 {
-            return None;
-        }
-        let t = e2.dot(qv) * inv;
-        (t > 0.0 && t < tmax).then_some(t)
-    }
-
-    fn random_triangles(rng: &mut Pcg32, n: usize) -> Vec<(Vec3A, Vec3A, Vec3A)> {
+    fn random_triangles(rng: &mut Pcg32, n: usize) -> Vec<LeafTriangle> {
         let mut p = || Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d()) * 2.0 - 1.0;
         (0..n)
-            .map(|_| {
-                let (a, b, c) = (p(), p() * 1.5, p() * 1.5);
-                (a, b, c)
+            .map(|_| LeafTriangle {
+                p0: p(),
+                e1: p() * 1.5,
+                e2: p() * 1.5,
             })
             .collect()
     }
 
-    /// Closest hit, any hit and every hit agree with the triangles tested one by one,
-    /// on random rays through random triangles (a count that leaves a block partly
-    /// filled, so the padding lanes are tested too).
+    /// Closest hit, any hit and every hit agree with the triangles tested one by one
+    /// (`LeafTriangle::intersect`, the BVH's leaf test), on random rays through random
+    /// triangles (a count that leaves a block partly filled, so the padding lanes are
+    /// tested too).
     #[test]
     fn lanes_agree_with_the_scalar_test() {
         let mut rng = Pcg32::new(7, 3);
         let tris = random_triangles(&mut rng, 21);
-        let lanes = TriangleLanes::new(tris.iter().copied());
+        let lanes = TriangleLanes::new(&tris);
         assert_eq!(lanes.len(), 21);
         let (mut hits, mut misses) = (0, 0);
         for _ in 0..20_000 {
@@ -270,7 +249,7 @@ mod tests {
             let each: Vec<(usize, f32)> = tris
                 .iter()
                 .enumerate()
-                .filter_map(|(i, &(p0, e1, e2))| scalar(p0, e1, e2, o, d, tmax).map(|t| (i, t)))
+                .filter_map(|(i, tri)| tri.intersect(o, d, tmax).map(|h| (i, h.0)))
                 .collect();
             let nearest = each.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1));
             let got = lanes.closest(o, d, tmax, |_| true);
@@ -302,14 +281,12 @@ mod tests {
     /// when told.
     #[test]
     fn filtered_and_stopped_searches() {
-        let tri = |z: f32| {
-            (
-                Vec3A::new(-1.0, -1.0, z),
-                Vec3A::new(3.0, 0.0, 0.0),
-                Vec3A::new(0.0, 3.0, 0.0),
-            )
+        let tri = |z: f32| LeafTriangle {
+            p0: Vec3A::new(-1.0, -1.0, z),
+            e1: Vec3A::new(3.0, 0.0, 0.0),
+            e2: Vec3A::new(0.0, 3.0, 0.0),
         };
-        let lanes = TriangleLanes::new([tri(-1.0), tri(-2.0), tri(-3.0)].into_iter());
+        let lanes = TriangleLanes::new(&[tri(-1.0), tri(-2.0), tri(-3.0)]);
         let (o, d) = (Vec3A::ZERO, Vec3A::NEG_Z);
         assert_eq!(
             lanes.closest(o, d, f32::INFINITY, |_| true).unwrap().index,
