@@ -41,6 +41,11 @@ pub struct EnvMap {
 /// Entries of a row's column CDF per block of the two-level search (a cache line).
 const BLOCK: usize = 16;
 
+/// Entries of each row's coarse table: a row of the column CDF has W + 1 entries.
+fn coarse_blocks(width: usize) -> usize {
+    (width + 1).div_ceil(BLOCK)
+}
+
 /// The first index i of the ascending `row` with row[i] > s (`partition_point`),
 /// found through `coarse` = row[0], row[BLOCK], row[2 BLOCK], …: the block where
 /// coarse first exceeds s bounds it, and only that block of `row` is searched.
@@ -117,7 +122,7 @@ impl EnvMap {
             acc_rows += row;
             row_cdf[cy + 1] = (acc_rows / total) as f32;
         }
-        let blocks = (width + 1).div_ceil(BLOCK);
+        let blocks = coarse_blocks(width);
         let col_coarse = (0..cells_y)
             .flat_map(|cy| {
                 let row = &col_cdf[cy * (width + 1)..(cy + 1) * (width + 1)];
@@ -173,9 +178,16 @@ impl EnvMap {
 
     /// Radiance arriving along a ray travelling in world direction `d`.
     pub fn eval(&self, d: Vec3A) -> Vec3 {
-        let (u, w) = Self::uv(self.to_local * Vec3::from(d));
-        let (gx, gy) = self.grid(u, w);
+        let (_, gx, gy) = self.locate(d);
         self.at_grid(gx, gy)
+    }
+
+    /// World direction `d` → its local direction and grid coordinates (gx, gy).
+    fn locate(&self, d: Vec3A) -> (Vec3, f32, f32) {
+        let v = self.to_local * Vec3::from(d);
+        let (u, w) = Self::uv(v);
+        let (gx, gy) = self.grid(u, w);
+        (v, gx, gy)
     }
 
     /// The bilinear radiance at grid coordinates (gx, gy), times `scale`.
@@ -208,7 +220,7 @@ impl EnvMap {
             0.5
         };
         let row = &self.col_cdf[cy * (self.width + 1)..(cy + 1) * (self.width + 1)];
-        let blocks = (self.width + 1).div_ceil(BLOCK);
+        let blocks = coarse_blocks(self.width);
         let coarse = &self.col_coarse[cy * blocks..(cy + 1) * blocks];
         let cx = first_above(row, coarse, s.y).clamp(1, self.width) - 1;
         let (c0, c1) = (row[cx], row[cx + 1]);
@@ -241,18 +253,14 @@ impl EnvMap {
 
     /// The solid-angle pdf with which `sample` produces world direction `d`.
     pub fn pdf(&self, d: Vec3A) -> f32 {
-        let v = self.to_local * Vec3::from(d);
-        let (u, w) = Self::uv(v);
-        let (gx, gy) = self.grid(u, w);
+        let (v, gx, gy) = self.locate(d);
         self.pdf_at(v, gx, gy)
     }
 
     /// [`EnvMap::eval`] and [`EnvMap::pdf`] of one direction (a ray that escapes after
     /// a BSDF or phase sample needs both), its texel found once: the same values.
     pub fn eval_and_pdf(&self, d: Vec3A) -> (Vec3, f32) {
-        let v = self.to_local * Vec3::from(d);
-        let (u, w) = Self::uv(v);
-        let (gx, gy) = self.grid(u, w);
+        let (v, gx, gy) = self.locate(d);
         (self.at_grid(gx, gy), self.pdf_at(v, gx, gy))
     }
 

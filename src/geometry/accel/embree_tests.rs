@@ -23,6 +23,12 @@ fn raw(positions: Vec<Vec3A>, triangles: Vec<[u32; 3]>) -> RawMesh {
     }
 }
 
+/// `r` as a mesh shape in world space (its normals flipped if `flip`).
+pub(super) fn mesh(r: RawMesh, flip: bool) -> Geometry {
+    let m = TriangleMesh::new(r, &Mat4::IDENTITY, true, flip, Path::new("test"));
+    Geometry::Mesh(m.expect("a valid mesh"))
+}
+
 /// A closed latitude-longitude sphere mesh (shared vertices, poles as fans).
 pub(super) fn uv_sphere(center: Vec3A, r: f32, n_lat: u32, n_lon: u32) -> RawMesh {
     let mut p = vec![center + Vec3A::Z * r, center - Vec3A::Z * r];
@@ -57,12 +63,6 @@ pub(super) fn uv_sphere(center: Vec3A, r: f32, n_lat: u32, n_lon: u32) -> RawMes
 /// triangles, an analytic sphere and a rectangle: the BVH holds triangles only, with
 /// the analytic shapes beside it, as in the mesh scenes.
 fn scene() -> Vec<Geometry> {
-    let mesh = |r: RawMesh, flip: bool| {
-        Geometry::Mesh(
-            TriangleMesh::new(r, &Mat4::IDENTITY, true, flip, Path::new("test"))
-                .expect("a valid mesh"),
-        )
-    };
     let mut rng = Pcg32::new(17, 3);
     let mut point = || Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d());
     let (mut p, mut t) = (Vec::new(), Vec::new());
@@ -136,16 +136,9 @@ fn backends(g: &[Geometry]) -> (Accel, Accel) {
 /// into it costs more than obvhs's traversal of so few), and used from there on.
 #[test]
 fn embree_starts_at_its_triangle_threshold() {
-    let mesh = |n_lat: u32, n_lon: u32| {
-        let r = uv_sphere(Vec3A::ZERO, 1.0, n_lat, n_lon);
-        Geometry::Mesh(
-            TriangleMesh::new(r, &Mat4::IDENTITY, true, false, Path::new("test"))
-                .expect("a valid mesh"),
-        )
-    };
     // 2 n_lon (n_lat − 1) triangles.
     for (n_lat, n_lon, want) in [(4, 8, Backend::Obvhs), (17, 32, Backend::Embree)] {
-        let g = mesh(n_lat, n_lon);
+        let g = mesh(uv_sphere(Vec3A::ZERO, 1.0, n_lat, n_lon), false);
         let Geometry::Mesh(m) = &g else {
             unreachable!()
         };

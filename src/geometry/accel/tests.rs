@@ -233,11 +233,7 @@ fn traversal_speed() {
 /// at either register width, and a sphere beside them that blocks shadow rays.
 #[test]
 fn lanes_answer_what_the_bvh_does() {
-    use super::embree_tests::{rays, uv_sphere};
-    let mesh = |r, flip| {
-        let m = TriangleMesh::new(r, &Mat4::IDENTITY, true, flip, Path::new("test"));
-        Geometry::Mesh(m.expect("a valid mesh"))
-    };
+    use super::embree_tests::{mesh, rays, uv_sphere};
     // 2 n_lon (n_lat − 1) triangles: 32 and 24.
     let g = vec![
         mesh(uv_sphere(Vec3A::ZERO, 1.0, 3, 8), false),
