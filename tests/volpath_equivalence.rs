@@ -232,6 +232,35 @@ fn furnace_is_exactly_one() {
     assert!(c.passed, "{c}");
 }
 
+/// The furnace's paths run in packets (`integrator::packet`), so the tests above test
+/// that kernel; here its reference, the scalar integrator, against the same exact answer.
+#[test]
+fn furnace_is_exactly_one_in_scalar_paths_too() {
+    use mediareg::integrator::{render::packet_scene, RenderOptions};
+    let scene = root().join("mitsuba_scenes/furnace.xml");
+    let layout = layout(&scene, &[]);
+    let chunks: Vec<_> = (0..CHUNKS)
+        .map(|i| {
+            let s = common::load_seeded(&scene, &[], SPP, 190 + i as u64);
+            assert!(
+                packet_scene(&s, &Default::default()).is_ok(),
+                "the furnace runs in packets"
+            );
+            let scalar = RenderOptions {
+                scalar_paths: true,
+                ..Default::default()
+            };
+            common::render_pixels(&s, scalar).0
+        })
+        .collect();
+    let ours = Estimate::from_chunks(&chunks, layout);
+    let n = ours.mean.len();
+    let exact = Estimate::from_moments(vec![[1.0; 3]; n], vec![[0.0; 3]; n], f64::INFINITY);
+    let c = compare(&ours, &exact, layout, ALPHA, FALSE_ALARM);
+    println!("furnace (scalar paths) vs exact 1: {c}");
+    assert!(c.passed, "{c}");
+}
+
 // ---- Power: the same comparison must fail on a slightly different medium ----
 
 #[test]

@@ -6,6 +6,7 @@ pub mod denoised;
 pub mod direct;
 pub mod emitters;
 pub mod gradient;
+pub mod packet;
 pub mod path;
 pub mod render;
 pub mod sample;

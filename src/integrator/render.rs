@@ -13,6 +13,7 @@ use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
+use super::packet::{self, PacketScene, PacketSettings};
 use super::sample::PathSample;
 use super::volpath::PathSettings;
 use super::{direct, path, volpath};
@@ -63,6 +64,10 @@ pub struct RenderOptions {
     /// the pass under way is dropped and the image of the passes completed is returned.
     /// Shared, so each caller (one Python thread's render) can have its own.
     pub cancel: Option<Arc<AtomicBool>>,
+    /// Run every path through the scalar integrator, also where the packet one
+    /// (`integrator::packet`) takes the scene: its reference, for tests and A/B timings.
+    /// The environment variable `MEDIAREG_PATHS=scalar` does the same.
+    pub scalar_paths: bool,
 }
 
 impl RenderOptions {
@@ -76,6 +81,57 @@ impl RenderOptions {
         all[medium as usize] = albedo;
         self.albedo = Some(all);
         self
+    }
+}
+
+/// The packet form of `scene` where its paths run in lanes (`integrator::packet`) and
+/// the options allow it; else why they run in the scalar integrator.
+pub fn packet_scene(scene: &Scene, opts: &RenderOptions) -> Result<PacketScene, String> {
+    if opts.scalar_paths || std::env::var("MEDIAREG_PATHS").is_ok_and(|v| v == "scalar") {
+        return Err("scalar paths asked for".into());
+    }
+    PacketScene::new(scene)
+}
+
+/// Camera samples waiting for a packet: their film positions, rays and streams.
+#[derive(Default)]
+struct PacketQueue {
+    positions: Vec<Vec2>,
+    rays: Vec<(glam::Vec3A, glam::Vec3A, f32)>,
+    rngs: Vec<Pcg32>,
+}
+
+impl PacketQueue {
+    fn push(&mut self, pos: Vec2, ray: (glam::Vec3A, glam::Vec3A, f32), rng: Pcg32) {
+        self.positions.push(pos);
+        self.rays.push(ray);
+        self.rngs.push(rng);
+    }
+
+    fn is_full(&self) -> bool {
+        self.rays.len() == packet::WIDTH
+    }
+
+    /// Traces the queued samples as one packet, splats them in the order queued, and
+    /// empties the queue.
+    fn run(
+        &mut self,
+        ps: &PacketScene,
+        settings: &PacketSettings,
+        splat: &mut impl FnMut(Vec2, PathSample),
+    ) {
+        let n = self.rays.len();
+        if n == 0 {
+            return;
+        }
+        let mut out = [PathSample::default(); packet::WIDTH];
+        packet::sample_packet(ps, settings, &self.rays, &mut self.rngs, &mut out[..n]);
+        for (pos, s) in self.positions.iter().zip(&out[..n]) {
+            splat(*pos, *s);
+        }
+        self.positions.clear();
+        self.rays.clear();
+        self.rngs.clear();
     }
 }
 
@@ -185,6 +241,8 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         albedo: &albedo,
         gradient,
     };
+    let packets = packet_scene(scene, opts).ok();
+    let packet_settings = PacketSettings::new(&settings);
     let film = &shot.film;
     let (cw, ch) = film.crop_size;
     let (ox, oy) = film.crop_offset;
@@ -248,6 +306,18 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
             .zip(pass.par_iter_mut())
             .map(|(&(tx, ty, tw, th), blocks)| {
                 let mut invalid = 0u64;
+                let mut splat = |pos: Vec2, mut s: PathSample| {
+                    if !(s.radiance.is_finite()
+                        && s.second.is_finite()
+                        && s.seen_emission.is_finite())
+                    {
+                        invalid += 1;
+                        s = PathSample::default();
+                    }
+                    let p = (pos.x - ox as f32, pos.y - oy as f32);
+                    blocks.put(p, &s, &film.rfilter);
+                };
+                let mut queue = PacketQueue::default();
                 for y in ty..ty + th {
                     if cancelled() {
                         return None;
@@ -263,18 +333,20 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                             let u = positions.get(si);
                             let pos = Vec2::new(fx as f32 + u.x, fy as f32 + u.y);
                             let ray = shot.camera.sample_ray(pos);
-                            let mut s = sample(ray.o, ray.d, ray.tmax, &mut rng);
-                            if !(s.radiance.is_finite()
-                                && s.second.is_finite()
-                                && s.seen_emission.is_finite())
-                            {
-                                invalid += 1;
-                                s = PathSample::default();
+                            match &packets {
+                                Some(ps) => {
+                                    queue.push(pos, (ray.o, ray.d, ray.tmax), rng);
+                                    if queue.is_full() {
+                                        queue.run(ps, &packet_settings, &mut splat);
+                                    }
+                                }
+                                None => splat(pos, sample(ray.o, ray.d, ray.tmax, &mut rng)),
                             }
-                            let p = (pos.x - ox as f32, pos.y - oy as f32);
-                            blocks.put(p, &s, &film.rfilter);
                         }
                     }
+                }
+                if let Some(ps) = &packets {
+                    queue.run(ps, &packet_settings, &mut splat);
                 }
                 bar.inc((tw * th) as u64 * (s1 - s0) as u64);
                 Some(invalid)

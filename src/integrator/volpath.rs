@@ -339,7 +339,7 @@ impl Gradient {
     /// w (dβ α_t + β (α_t − α)), so (α_t, α_t − α), without dividing by α. In other
     /// media α scales both: (α, 0).
     #[inline]
-    fn vertex_factors(self, mi: u32, albedo: Vec3) -> (Vec3, Vec3) {
+    pub(super) fn vertex_factors(self, mi: u32, albedo: Vec3) -> (Vec3, Vec3) {
         match self {
             Gradient::Difference { medium, target } if medium == mi => (target, target - albedo),
             g if g.medium() == Some(mi) => (albedo, Vec3::ONE),

@@ -108,6 +108,13 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
     };
 
     eprintln!("ray caster: {}", scene_data.accel.describe());
+    match integrator::render::packet_scene(&scene_data, &Default::default()) {
+        Ok(_) => eprintln!(
+            "paths: {} at a time in SIMD lanes",
+            integrator::packet::WIDTH
+        ),
+        Err(why) => eprintln!("paths: one at a time ({why})"),
+    }
     let show = std::io::stderr().is_terminal();
     install_handler()?;
     let rendered = integrator::render(

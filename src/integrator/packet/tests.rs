@@ -1,0 +1,299 @@
+//! The packet kernel against its reference, the scalar `volpath`: the same expectation
+//! on every ray (radiance, the albedo derivative and the albedo difference), a power
+//! test beside it, and the scenes it takes or refuses.
+
+use super::*;
+use crate::integrator::volpath;
+use crate::load::BuildOverrides;
+
+/// Two media spheres under a sky: a grey forward-scattering one and a chromatic
+/// backward-scattering one (σ_t of its channels within a factor 4: every channel's
+/// variance stays finite with the hero's sampling).
+const TWO_SPHERES: &str = r#"<scene version="3.0.0">
+    <integrator type="volpath"><integer name="rr_depth" value="3"/></integrator>
+    <sensor type="perspective"><film type="hdrfilm">
+        <integer name="width" value="4"/><integer name="height" value="4"/></film></sensor>
+    <shape type="sphere"><point name="center" x="-0.6" y="0" z="4"/>
+        <float name="radius" value="0.5"/><bsdf type="null"/>
+        <medium type="homogeneous" name="interior">
+            <float name="sigma_t" value="3"/><float name="albedo" value="0.8"/>
+            <phase type="hg"><float name="g" value="0.6"/></phase></medium></shape>
+    <shape type="sphere"><point name="center" x="0.6" y="0.1" z="4.5"/>
+        <float name="radius" value="0.55"/><bsdf type="null"/>
+        <medium type="homogeneous" name="interior">
+            <rgb name="sigma_t" value="0.3, 0.6, 1"/><float name="scale" value="5"/><rgb name="albedo" value="0.9, 0.7, 0.5"/>
+            <phase type="hg"><float name="g" value="-0.3"/></phase></medium></shape>
+    <emitter type="constant"><rgb name="radiance" value="1, 0.8, 0.6"/></emitter>
+</scene>"#;
+
+fn load_xml(name: &str, xml: &str) -> Scene {
+    let dir = std::env::temp_dir().join(format!("mediareg_packet_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{name}.xml"));
+    std::fs::write(&path, xml).unwrap();
+    crate::load_scene(&path, &Default::default(), &BuildOverrides::default())
+        .unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// Rays from the origin: into the grey sphere (centre and rim), the chromatic one,
+/// past both (between them), and away from both.
+fn rays() -> Vec<Vec3A> {
+    [
+        (-0.15, 0.0),
+        (-0.22, 0.08),
+        (0.133, 0.022),
+        (0.17, -0.05),
+        (0.0, 0.0),
+        (0.0, 0.5),
+    ]
+    .into_iter()
+    .map(|(x, y)| Vec3A::new(x, y, 1.0).normalize())
+    .collect()
+}
+
+/// Mean and variance of the mean of `n` samples, per channel of radiance and second.
+struct Moments {
+    mean: [Vec3; 2],
+    var_of_mean: [Vec3; 2],
+}
+
+fn moments(samples: &[PathSample]) -> Moments {
+    let n = samples.len() as f64;
+    let mut out = Moments {
+        mean: [Vec3::ZERO; 2],
+        var_of_mean: [Vec3::ZERO; 2],
+    };
+    for q in 0..2 {
+        for c in 0..3 {
+            let v = |s: &PathSample| if q == 0 { s.radiance[c] } else { s.second[c] } as f64;
+            let m = samples.iter().map(v).sum::<f64>() / n;
+            let var = samples.iter().map(|s| (v(s) - m).powi(2)).sum::<f64>() / (n - 1.0);
+            out.mean[q][c] = m as f32;
+            out.var_of_mean[q][c] = (var / n) as f32;
+        }
+    }
+    out
+}
+
+const N: usize = 40_000;
+
+/// `N` scalar samples along `d`.
+fn scalar_samples(scene: &Scene, settings: &PathSettings, d: Vec3A, seed: u64) -> Vec<PathSample> {
+    (0..N as u64)
+        .map(|k| {
+            let mut rng = Pcg32::new(seed, k);
+            volpath::sample(scene, settings, Vec3A::ZERO, d, f32::INFINITY, &mut rng)
+        })
+        .collect()
+}
+
+/// `N` packet samples along `d`, [`WIDTH`] lanes at a time.
+fn packet_samples(
+    ps: &PacketScene,
+    settings: &PacketSettings,
+    d: Vec3A,
+    seed: u64,
+) -> Vec<PathSample> {
+    let mut out = vec![PathSample::default(); N];
+    for (j, chunk) in out.chunks_mut(WIDTH).enumerate() {
+        let rays = vec![(Vec3A::ZERO, d, f32::INFINITY); chunk.len()];
+        let mut rngs: Vec<Pcg32> = (0..chunk.len())
+            .map(|k| Pcg32::new(seed, (j * WIDTH + k) as u64))
+            .collect();
+        sample_packet(ps, settings, &rays, &mut rngs, chunk);
+    }
+    out
+}
+
+/// Largest |z| of the packet's means against the scalar ones, over the rays, the two
+/// images and the channels (z from the variances of both means).
+fn largest_z(
+    scene: &Scene,
+    gradient: Gradient,
+    packet_albedo: Option<Vec<Vec3>>,
+    seed: u64,
+) -> f32 {
+    let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
+    let settings = PathSettings {
+        albedo: &albedo,
+        gradient,
+    };
+    let ps = PacketScene::new(scene).expect("the packet takes the scene");
+    let packet_albedo = packet_albedo.unwrap_or_else(|| albedo.clone());
+    let packet_settings = PacketSettings::new(&PathSettings {
+        albedo: &packet_albedo,
+        gradient,
+    });
+    let mut worst = 0f32;
+    for d in rays() {
+        let a = moments(&scalar_samples(scene, &settings, d, seed));
+        let b = moments(&packet_samples(&ps, &packet_settings, d, seed + 1));
+        for q in 0..2 {
+            for c in 0..3 {
+                let var = a.var_of_mean[q][c] + b.var_of_mean[q][c];
+                let diff = a.mean[q][c] - b.mean[q][c];
+                if var > 0.0 {
+                    worst = worst.max(diff.abs() / var.sqrt());
+                } else {
+                    assert_eq!(diff, 0.0, "ray {d}: a noiseless value differs");
+                }
+            }
+        }
+    }
+    worst
+}
+
+/// |z| above which a difference counts: 6 rays × 2 images × 3 channels = 36 tests
+/// per comparison; at 4.5 a Gaussian false alarm has probability 36 · 6.8e-6 = 2.4e-4.
+const Z_LIMIT: f32 = 4.5;
+
+/// The packet's radiance and each second image equal the scalar integrator's in
+/// expectation, ray by ray.
+#[test]
+fn packets_equal_scalar_paths_in_expectation() {
+    let scene = load_xml("two_spheres", TWO_SPHERES);
+    let gradients = [
+        Gradient::None,
+        Gradient::Albedo(0),
+        Gradient::Albedo(1),
+        Gradient::Difference {
+            medium: 1,
+            target: Vec3::new(0.95, 0.9, 0.8),
+        },
+    ];
+    for (i, g) in gradients.into_iter().enumerate() {
+        let z = largest_z(&scene, g, None, 100 + 10 * i as u64);
+        println!("{g:?}: largest |z| {z:.2}");
+        assert!(z < Z_LIMIT, "{g:?}: |z| = {z} ≥ {Z_LIMIT}");
+    }
+}
+
+/// Power: the same comparison catches a packet that renders the grey medium's albedo
+/// 2% low (0.8 → 0.784), and the chromatic one's green channel 2% low.
+#[test]
+fn the_comparison_detects_an_albedo_two_percent_off() {
+    let scene = load_xml("two_spheres_power", TWO_SPHERES);
+    let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
+    for (m, scale) in [(0, Vec3::splat(0.98)), (1, Vec3::new(1.0, 0.98, 1.0))] {
+        let mut off = albedo.clone();
+        off[m] *= scale;
+        let z = largest_z(&scene, Gradient::None, Some(off), 300 + m as u64);
+        println!("medium {m} off by 2%: largest |z| {z:.2}");
+        assert!(
+            z >= Z_LIMIT,
+            "medium {m}'s albedo 2% off went undetected: |z| = {z}"
+        );
+    }
+}
+
+/// The false-alarm rate of [`Z_LIMIT`], measured: scalar against scalar over many
+/// seeds, the largest |z| of each comparison. Gaussian tails would put 4.5 beyond
+/// every one of them; a heavier tail (the roulette's 1/q) would show here.
+#[test]
+fn the_z_limit_holds_for_scalar_against_scalar() {
+    let scene = load_xml("two_spheres_alarm", TWO_SPHERES);
+    let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
+    let settings = PathSettings {
+        albedo: &albedo,
+        gradient: Gradient::Albedo(1),
+    };
+    let mut alarms = 0;
+    let trials = 8;
+    for t in 0..trials {
+        let mut worst = 0f32;
+        for d in rays() {
+            let a = moments(&scalar_samples(&scene, &settings, d, 1000 + 2 * t));
+            let b = moments(&scalar_samples(&scene, &settings, d, 1001 + 2 * t));
+            for q in 0..2 {
+                for c in 0..3 {
+                    let var = a.var_of_mean[q][c] + b.var_of_mean[q][c];
+                    if var > 0.0 {
+                        worst = worst.max((a.mean[q][c] - b.mean[q][c]).abs() / var.sqrt());
+                    }
+                }
+            }
+        }
+        println!("trial {t}: largest |z| {worst:.2}");
+        alarms += (worst >= Z_LIMIT) as u32;
+    }
+    assert_eq!(
+        alarms, 0,
+        "{alarms} of {trials} same-estimator comparisons alarmed"
+    );
+}
+
+/// The white furnace in packets: a medium that does not absorb, under a sky of 1, gives
+/// back 1 in expectation; every path is valid (it meets the sphere) and non-negative.
+#[test]
+fn a_white_furnace_gives_back_the_sky() {
+    let scene = load_xml(
+        "furnace",
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/mitsuba_scenes/furnace.xml"
+        ))
+        .unwrap()
+        .replace("$sigma_t", "2")
+        .replace("$g", "0.6")
+        .replace("$spp", "4")
+        .replace("$res", "4"),
+    );
+    let ps = PacketScene::new(&scene).expect("the furnace is a packet scene");
+    let settings = PacketSettings::new(&PathSettings {
+        albedo: &[Vec3::ONE],
+        gradient: Gradient::None,
+    });
+    let d = Vec3A::new(0.05, -0.1, -1.0).normalize();
+    let samples = packet_samples(&ps, &settings, d, 7);
+    let m = moments(&samples);
+    let z = ((m.mean[0] - Vec3::ONE).abs() / m.var_of_mean[0].max(Vec3::splat(1e-30)).powf(0.5))
+        .max_element();
+    assert!(z < Z_LIMIT, "furnace mean {} (|z| {z})", m.mean[0]);
+    assert!(samples
+        .iter()
+        .all(|s| s.radiance.min_element() >= 0.0 && s.valid));
+}
+
+/// Scenes the packet refuses, each for its reason, and the one it takes.
+#[test]
+fn the_packet_takes_media_spheres_under_a_sky_only() {
+    let scene = load_xml("takes", TWO_SPHERES);
+    assert!(PacketScene::new(&scene).is_ok());
+    let refused = [
+        (
+            "diffuse",
+            TWO_SPHERES.replacen(r#"<bsdf type="null"/>"#, r#"<bsdf type="diffuse"/>"#, 1),
+            "not null",
+        ),
+        (
+            "overlap",
+            TWO_SPHERES.replace(r#"x="0.6" y="0.1" z="4.5""#, r#"x="0.2" y="0" z="4""#),
+            "overlap",
+        ),
+        (
+            "point",
+            TWO_SPHERES.replace(
+                r#"<emitter type="constant"><rgb name="radiance" value="1, 0.8, 0.6"/></emitter>"#,
+                r#"<emitter type="point"><point name="position" x="0" y="3" z="4"/></emitter>"#,
+            ),
+            "emitter",
+        ),
+        (
+            "path",
+            TWO_SPHERES.replace(r#"type="volpath""#, r#"type="path""#),
+            "not volpath",
+        ),
+        (
+            "peaked",
+            TWO_SPHERES.replace(r#"value="0.6""#, r#"value="0.97""#),
+            "phase",
+        ),
+    ];
+    for (name, xml, why) in refused {
+        let scene = load_xml(name, &xml);
+        match PacketScene::new(&scene) {
+            Ok(_) => panic!("{name}: taken"),
+            Err(e) => assert!(e.contains(why), "{name}: {e}"),
+        }
+    }
+}
