@@ -116,6 +116,7 @@ impl PacketQueue {
     /// empties the queue.
     fn run(
         &mut self,
+        scene: &Scene,
         ps: &PacketScene,
         settings: &PacketSettings,
         splat: &mut impl FnMut(Vec2, PathSample),
@@ -125,7 +126,14 @@ impl PacketQueue {
             return;
         }
         let mut out = [PathSample::default(); packet::WIDTH];
-        packet::sample_packet(ps, settings, &self.rays, &mut self.rngs, &mut out[..n]);
+        packet::sample_packet(
+            scene,
+            ps,
+            settings,
+            &self.rays,
+            &mut self.rngs,
+            &mut out[..n],
+        );
         for (pos, s) in self.positions.iter().zip(&out[..n]) {
             splat(*pos, *s);
         }
@@ -337,7 +345,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                                 Some(ps) => {
                                     queue.push(pos, (ray.o, ray.d, ray.tmax), rng);
                                     if queue.is_full() {
-                                        queue.run(ps, &packet_settings, &mut splat);
+                                        queue.run(scene, ps, &packet_settings, &mut splat);
                                     }
                                 }
                                 None => splat(pos, sample(ray.o, ray.d, ray.tmax, &mut rng)),
@@ -346,7 +354,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                     }
                 }
                 if let Some(ps) = &packets {
-                    queue.run(ps, &packet_settings, &mut splat);
+                    queue.run(scene, ps, &packet_settings, &mut splat);
                 }
                 bar.inc((tw * th) as u64 * (s1 - s0) as u64);
                 Some(invalid)

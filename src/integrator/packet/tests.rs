@@ -3,7 +3,7 @@
 //! test beside it, and the scenes it takes or refuses.
 
 use super::*;
-use crate::integrator::volpath;
+use crate::integrator::volpath::{self, Gradient, PathSettings};
 use crate::load::BuildOverrides;
 
 /// Two media spheres under a sky: a grey forward-scattering one and a chromatic
@@ -25,6 +25,41 @@ const TWO_SPHERES: &str = r#"<scene version="3.0.0">
             <phase type="hg"><float name="g" value="-0.3"/></phase></medium></shape>
     <emitter type="constant"><rgb name="radiance" value="1, 0.8, 0.6"/></emitter>
 </scene>"#;
+
+/// The two spheres on a diffuse floor (touching the grey one) beside a diffuse ball,
+/// lit by a point light, a directional light and the sky: emitter samples from medium
+/// and surface vertices, shadow rays through media and blocked by surfaces.
+fn lit_spheres() -> String {
+    TWO_SPHERES.replace(
+        "<emitter type=\"constant\">",
+        r#"<shape type="rectangle"><transform name="to_world"><scale value="3"/>
+            <rotate x="1" angle="-90"/><translate x="0" y="-0.5" z="4"/></transform>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.6, 0.7"/></bsdf></shape>
+        <shape type="sphere"><point name="center" x="0" y="0.9" z="5"/>
+            <float name="radius" value="0.3"/>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.8, 0.8"/></bsdf></shape>
+        <emitter type="point"><point name="position" x="0.5" y="2" z="3.5"/>
+            <rgb name="intensity" value="5, 5, 5"/></emitter>
+        <emitter type="directional"><vector name="direction" x="0.3" y="-1" z="0.2"/>
+            <rgb name="irradiance" value="1.5, 1.5, 1.5"/></emitter>
+        <emitter type="constant">"#,
+    )
+}
+
+/// Rays from the origin into the lit scene: the media spheres, the floor, the ball.
+fn lit_rays() -> Vec<Vec3A> {
+    [
+        (-0.15, 0.0),
+        (-0.22, 0.08),
+        (0.133, 0.022),
+        (0.0, -0.2),
+        (0.3, -0.12),
+        (0.0, 0.18),
+    ]
+    .into_iter()
+    .map(|(x, y)| Vec3A::new(x, y, 1.0).normalize())
+    .collect()
+}
 
 fn load_xml(name: &str, xml: &str) -> Scene {
     let dir = std::env::temp_dir().join(format!("mediareg_packet_{}", std::process::id()));
@@ -89,6 +124,7 @@ fn scalar_samples(scene: &Scene, settings: &PathSettings, d: Vec3A, seed: u64) -
 
 /// `N` packet samples along `d`, [`WIDTH`] lanes at a time.
 fn packet_samples(
+    scene: &Scene,
     ps: &PacketScene,
     settings: &PacketSettings,
     d: Vec3A,
@@ -100,7 +136,7 @@ fn packet_samples(
         let mut rngs: Vec<Pcg32> = (0..chunk.len())
             .map(|k| Pcg32::new(seed, (j * WIDTH + k) as u64))
             .collect();
-        sample_packet(ps, settings, &rays, &mut rngs, chunk);
+        sample_packet(scene, ps, settings, &rays, &mut rngs, chunk);
     }
     out
 }
@@ -109,6 +145,19 @@ fn packet_samples(
 /// images and the channels (z from the variances of both means).
 fn largest_z(
     scene: &Scene,
+    rays: &[Vec3A],
+    gradient: Gradient,
+    packet_albedo: Option<Vec<Vec3>>,
+    seed: u64,
+) -> f32 {
+    largest_z_against(scene, scene, rays, gradient, packet_albedo, seed)
+}
+
+/// [`largest_z`] with the packet rendering `packet_scene` (an edited copy, for power).
+fn largest_z_against(
+    scene: &Scene,
+    packet_scene: &Scene,
+    rays: &[Vec3A],
     gradient: Gradient,
     packet_albedo: Option<Vec<Vec3>>,
     seed: u64,
@@ -118,16 +167,22 @@ fn largest_z(
         albedo: &albedo,
         gradient,
     };
-    let ps = PacketScene::new(scene).expect("the packet takes the scene");
+    let ps = PacketScene::new(packet_scene).expect("the packet takes the scene");
     let packet_albedo = packet_albedo.unwrap_or_else(|| albedo.clone());
     let packet_settings = PacketSettings::new(&PathSettings {
         albedo: &packet_albedo,
         gradient,
     });
     let mut worst = 0f32;
-    for d in rays() {
+    for &d in rays {
         let a = moments(&scalar_samples(scene, &settings, d, seed));
-        let b = moments(&packet_samples(&ps, &packet_settings, d, seed + 1));
+        let b = moments(&packet_samples(
+            packet_scene,
+            &ps,
+            &packet_settings,
+            d,
+            seed + 1,
+        ));
         for q in 0..2 {
             for c in 0..3 {
                 let var = a.var_of_mean[q][c] + b.var_of_mean[q][c];
@@ -151,7 +206,8 @@ const Z_LIMIT: f32 = 4.5;
 /// expectation, ray by ray.
 #[test]
 fn packets_equal_scalar_paths_in_expectation() {
-    let scene = load_xml("two_spheres", TWO_SPHERES);
+    let two = load_xml("two_spheres", TWO_SPHERES);
+    let lit = load_xml("lit_spheres", &lit_spheres());
     let gradients = [
         Gradient::None,
         Gradient::Albedo(0),
@@ -162,9 +218,11 @@ fn packets_equal_scalar_paths_in_expectation() {
         },
     ];
     for (i, g) in gradients.into_iter().enumerate() {
-        let z = largest_z(&scene, g, None, 100 + 10 * i as u64);
-        println!("{g:?}: largest |z| {z:.2}");
-        assert!(z < Z_LIMIT, "{g:?}: |z| = {z} ≥ {Z_LIMIT}");
+        for (name, scene, rays) in [("two spheres", &two, rays()), ("lit", &lit, lit_rays())] {
+            let z = largest_z(scene, &rays, g, None, 100 + 10 * i as u64);
+            println!("{name}, {g:?}: largest |z| {z:.2}");
+            assert!(z < Z_LIMIT, "{name}, {g:?}: |z| = {z} ≥ {Z_LIMIT}");
+        }
     }
 }
 
@@ -172,16 +230,50 @@ fn packets_equal_scalar_paths_in_expectation() {
 /// 2% low (0.8 → 0.784), and the chromatic one's green channel 2% low.
 #[test]
 fn the_comparison_detects_an_albedo_two_percent_off() {
-    let scene = load_xml("two_spheres_power", TWO_SPHERES);
-    let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
-    for (m, scale) in [(0, Vec3::splat(0.98)), (1, Vec3::new(1.0, 0.98, 1.0))] {
-        let mut off = albedo.clone();
-        off[m] *= scale;
-        let z = largest_z(&scene, Gradient::None, Some(off), 300 + m as u64);
-        println!("medium {m} off by 2%: largest |z| {z:.2}");
+    let two = load_xml("two_spheres_power", TWO_SPHERES);
+    let lit = load_xml("lit_spheres_power", &lit_spheres());
+    for (name, scene, rays) in [("two spheres", &two, rays()), ("lit", &lit, lit_rays())] {
+        let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
+        for (m, scale) in [(0, Vec3::splat(0.98)), (1, Vec3::new(1.0, 0.98, 1.0))] {
+            let mut off = albedo.clone();
+            off[m] *= scale;
+            let z = largest_z(scene, &rays, Gradient::None, Some(off), 300 + m as u64);
+            println!("{name}, medium {m} off by 2%: largest |z| {z:.2}");
+            assert!(
+                z >= Z_LIMIT,
+                "{name}: medium {m}'s albedo 2% off went undetected: |z| = {z}"
+            );
+        }
+    }
+}
+
+/// Power on the emitter samples: a point light 5% brighter, or a directional light 5%
+/// brighter, in the packet's copy of the lit scene, must be caught (the floor and the
+/// ball see them mostly by emitter sampling).
+#[test]
+fn the_comparison_detects_a_light_five_percent_off() {
+    let lit = load_xml("lit_spheres_lights", &lit_spheres());
+    for (name, from, to) in [
+        (
+            "point",
+            r#"<rgb name="intensity" value="5, 5, 5"/>"#,
+            r#"<rgb name="intensity" value="5.25, 5.25, 5.25"/>"#,
+        ),
+        (
+            "directional",
+            r#"<rgb name="irradiance" value="1.5, 1.5, 1.5"/>"#,
+            r#"<rgb name="irradiance" value="1.575, 1.575, 1.575"/>"#,
+        ),
+    ] {
+        let off = load_xml(
+            &format!("lit_spheres_{name}_off"),
+            &lit_spheres().replace(from, to),
+        );
+        let z = largest_z_against(&lit, &off, &lit_rays(), Gradient::None, None, 500);
+        println!("{name} light 5% brighter: largest |z| {z:.2}");
         assert!(
             z >= Z_LIMIT,
-            "medium {m}'s albedo 2% off went undetected: |z| = {z}"
+            "the {name} light 5% off went undetected: |z| = {z}"
         );
     }
 }
@@ -191,7 +283,7 @@ fn the_comparison_detects_an_albedo_two_percent_off() {
 /// every one of them; a heavier tail (the roulette's 1/q) would show here.
 #[test]
 fn the_z_limit_holds_for_scalar_against_scalar() {
-    let scene = load_xml("two_spheres_alarm", TWO_SPHERES);
+    let scene = load_xml("lit_spheres_alarm", &lit_spheres());
     let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
     let settings = PathSettings {
         albedo: &albedo,
@@ -201,7 +293,7 @@ fn the_z_limit_holds_for_scalar_against_scalar() {
     let trials = 8;
     for t in 0..trials {
         let mut worst = 0f32;
-        for d in rays() {
+        for d in lit_rays() {
             let a = moments(&scalar_samples(&scene, &settings, d, 1000 + 2 * t));
             let b = moments(&scalar_samples(&scene, &settings, d, 1001 + 2 * t));
             for q in 0..2 {
@@ -244,7 +336,7 @@ fn a_white_furnace_gives_back_the_sky() {
         gradient: Gradient::None,
     });
     let d = Vec3A::new(0.05, -0.1, -1.0).normalize();
-    let samples = packet_samples(&ps, &settings, d, 7);
+    let samples = packet_samples(&scene, &ps, &settings, d, 7);
     let m = moments(&samples);
     let z = ((m.mean[0] - Vec3::ONE).abs() / m.var_of_mean[0].max(Vec3::splat(1e-30)).powf(0.5))
         .max_element();
@@ -256,8 +348,10 @@ fn a_white_furnace_gives_back_the_sky() {
 
 /// Scenes the packet refuses, each for its reason, and the one it takes.
 #[test]
-fn the_packet_takes_media_spheres_under_a_sky_only() {
+fn the_packet_takes_media_spheres_diffuse_shapes_and_delta_lights_only() {
     let scene = load_xml("takes", TWO_SPHERES);
+    assert!(PacketScene::new(&scene).is_ok());
+    let scene = load_xml("takes_lit", &lit_spheres());
     assert!(PacketScene::new(&scene).is_ok());
     let refused = [
         (
@@ -271,12 +365,25 @@ fn the_packet_takes_media_spheres_under_a_sky_only() {
             "overlap",
         ),
         (
-            "point",
+            "area",
             TWO_SPHERES.replace(
                 r#"<emitter type="constant"><rgb name="radiance" value="1, 0.8, 0.6"/></emitter>"#,
-                r#"<emitter type="point"><point name="position" x="0" y="3" z="4"/></emitter>"#,
+                r#"<shape type="rectangle"><emitter type="area"/></shape>"#,
             ),
-            "emitter",
+            "emits",
+        ),
+        (
+            "floor_cuts_sphere",
+            lit_spheres().replace(r#"y="-0.5" z="4""#, r#"y="-0.45" z="4""#),
+            "reaches into",
+        ),
+        (
+            "textured",
+            lit_spheres().replace(
+                r#"<rgb name="reflectance" value="0.5, 0.6, 0.7"/>"#,
+                r#"<texture type="checkerboard" name="reflectance"/>"#,
+            ),
+            "textured",
         ),
         (
             "path",

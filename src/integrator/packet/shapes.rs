@@ -1,0 +1,137 @@
+//! Ray tests in lanes against the packet scene's shapes: one ray per lane, each shape in
+//! turn (a packet scene has a handful). No spawn offsets: a path inside a medium sphere
+//! meets only that sphere's far side, a path in empty space only spheres it enters from
+//! outside, and the surface a path leaves is skipped (a ray leaving a plane or a convex
+//! surface outwards cannot meet it again).
+
+use glam::{Vec3, Vec4};
+use wide::{CmpEq, CmpGt, CmpLe, CmpLt};
+
+use super::lanes::{L, V3};
+use super::scene::{PacketScene, SurfaceShape};
+
+/// A ray's quadratic against a sphere (unit direction): |o + t d − c|² = r² is
+/// t² + 2bt + c = 0 with b = (o − c)·d and c = |o − c|² − r².
+pub struct SphereRoots {
+    b: L,
+    c: L,
+    disc: L,
+    root: L,
+}
+
+impl SphereRoots {
+    #[inline(always)]
+    pub fn new(o: V3, d: V3, center: Vec3, radius2: f32) -> SphereRoots {
+        let oc = o.sub(V3::splat(center));
+        let b = oc.dot(d);
+        let c = oc.dot(oc) - L::splat(radius2);
+        let disc = b * b - c;
+        SphereRoots {
+            b,
+            c,
+            disc,
+            root: disc.max(L::ZERO).sqrt(),
+        }
+    }
+
+    /// From inside (c ≤ 0): the far root −b + √disc, written −c / (b + √disc) where
+    /// b > 0 (no cancellation); never below 0.
+    #[inline(always)]
+    pub fn exit(&self) -> L {
+        let (b, c, root) = (self.b, self.c, self.root);
+        b.cmp_le(L::ZERO)
+            .blend(root - b, -c / (b + root))
+            .max(L::ZERO)
+    }
+
+    /// From outside: where the ray enters (c > 0, heading in: b < 0, and not missing),
+    /// the near root c / (−b + √disc) and the far one −b + √disc.
+    #[inline(always)]
+    pub fn entry(&self) -> (L, L, L) {
+        let (b, c, root) = (self.b, self.c, self.root);
+        let enters = b.cmp_lt(L::ZERO) & c.cmp_gt(L::ZERO) & self.disc.cmp_gt(L::ZERO);
+        (enters, c / (root - b), root - b)
+    }
+}
+
+/// Where the ray meets a rectangle or disk (`rows`: its `to_local` map), if ahead of
+/// its origin: (mask, t).
+#[inline(always)]
+pub fn planar_hit(o: V3, d: V3, rows: &[Vec4; 3], disk: bool) -> (L, L) {
+    let row = |r: Vec4, v: V3, w: f32| {
+        L::splat(r.x) * v.x + L::splat(r.y) * v.y + L::splat(r.z) * v.z + L::splat(r.w * w)
+    };
+    let (oz, dz) = (row(rows[2], o, 1.0), row(rows[2], d, 0.0));
+    let t = -oz / dz;
+    let x = row(rows[0], o, 1.0) + row(rows[0], d, 0.0) * t;
+    let y = row(rows[1], o, 1.0) + row(rows[1], d, 0.0) * t;
+    let inside = if disk {
+        (x * x + y * y).cmp_le(L::ONE)
+    } else {
+        x.abs().cmp_le(L::ONE) & y.abs().cmp_le(L::ONE)
+    };
+    // t > 0 is false for the NaN of a ray parallel to the plane (0 / 0) and for ±∞.
+    (inside & t.cmp_gt(L::ZERO) & t.is_finite(), t)
+}
+
+/// Where the ray meets surface `k` from its origin (not the surface it is on: `skip`):
+/// (mask, t).
+#[inline(always)]
+pub fn surface_hit(ps: &PacketScene, k: usize, o: V3, d: V3, skip: L) -> (L, L) {
+    let not_skipped = !skip.cmp_eq(L::splat(k as f32));
+    let (hit, t) = match &ps.surfaces[k].shape {
+        SurfaceShape::Sphere { center, radius2 } => {
+            let (enters, near, _) = SphereRoots::new(o, d, *center, *radius2).entry();
+            (enters, near)
+        }
+        SurfaceShape::Planar { rows, disk, .. } => planar_hit(o, d, rows, *disk),
+    };
+    (hit & not_skipped, t)
+}
+
+/// The outward normal of surface `k` at its points `p`.
+#[inline(always)]
+pub fn surface_normal(ps: &PacketScene, k: usize, p: V3) -> V3 {
+    match &ps.surfaces[k].shape {
+        SurfaceShape::Sphere { center, radius2 } => p
+            .sub(V3::splat(*center))
+            .scale(L::splat(1.0 / radius2.sqrt())),
+        SurfaceShape::Planar { normal, .. } => V3::splat(*normal),
+    }
+}
+
+/// The transmittance of shadow rays from `o` along unit `d` over `dist`, the origin in
+/// medium sphere `inside` (−1: empty space) and on surface `skip` (−1: none), for the
+/// lanes of `mask`: e^{−σ_t ℓ} for the length ℓ of the ray in each medium sphere, 0
+/// where a surface blocks it.
+#[inline(always)]
+pub fn shadow_transmittance(
+    ps: &PacketScene,
+    o: V3,
+    d: V3,
+    dist: L,
+    inside: L,
+    skip: L,
+    mask: L,
+) -> V3 {
+    let mut blocked = !mask;
+    for k in 0..ps.surfaces.len() {
+        let (hit, t) = surface_hit(ps, k, o, d, skip);
+        blocked |= hit & t.cmp_lt(dist);
+    }
+    let mut tr = V3::splat(Vec3::ONE);
+    for (i, s) in ps.spheres.iter().enumerate() {
+        let roots = SphereRoots::new(o, d, s.center, s.radius2);
+        let (enters, near, far) = roots.entry();
+        let through = (far.min(dist) - near.min(dist)).max(L::ZERO);
+        let from_inside = inside.cmp_eq(L::splat(i as f32));
+        let len = from_inside.blend(roots.exit().min(dist), enters.blend(through, L::ZERO));
+        if len.cmp_gt(L::ZERO).any() {
+            tr = tr.mul(V3::transmittance(
+                V3::splat(ps.media[s.medium as usize].sigma_t),
+                len,
+            ));
+        }
+    }
+    tr.select(blocked, V3::splat(Vec3::ZERO))
+}
