@@ -29,7 +29,7 @@ fn one_frame(scene: &mediareg::scene::Scene) -> regularize::Regularized {
 /// The check's choice on `name` at `spp`, and whether OIDN really lowers the corrected
 /// MSE against the reference there (a separate render of the same spp, plain and
 /// denoised).
-fn choice_and_truth(name: &str, spp: u32, seed: u64) -> (bool, bool, f64, f64) {
+fn choice_and_truth(name: &str, spp: u32, seed: u64) -> (bool, bool, f64, f64, f64) {
     let scene = load_seeded(
         &root().join(format!("mitsuba_scenes/{name}.xml")),
         &[],
@@ -54,9 +54,22 @@ fn choice_and_truth(name: &str, spp: u32, seed: u64) -> (bool, bool, f64, f64) {
         mse_against(&r.image, &reference, &var).1,
         mse_against(&d, &reference, &var).1,
     );
-    (check.chose_oidn, oidn < plain, plain, oidn)
+    (
+        check.chose_oidn,
+        oidn < plain,
+        plain,
+        oidn,
+        check.oidn_error_se,
+    )
 }
 
+/// The check's choice is right wherever one image is clearly better: the rule takes no
+/// margin (`regularize::fallback`), so where the two errors are within its noise it may
+/// pick either, at little cost. Here a wrong choice passes only where it costs at most
+/// a quarter of the better image's MSE. The furnace is such a near tie (OIDN's error
+/// 7–25% above plain volpath's, the check's standard error about three times the
+/// difference): over six seeds the check picked OIDN on one, with the scalar paths and
+/// with the packets alike (on different seeds); the other scenes differ by 1.3× to 150×.
 #[test]
 fn the_check_keeps_plain_volpath_where_oidn_raises_the_error_and_oidn_where_it_lowers_it() {
     for (name, spp, want_oidn) in [
@@ -66,15 +79,15 @@ fn the_check_keeps_plain_volpath_where_oidn_raises_the_error_and_oidn_where_it_l
         ("medium_in_dielectric", 1024, true),
     ] {
         for seed in [1, 2] {
-            let (chose, truth, plain, oidn) = choice_and_truth(name, spp, seed);
+            let (chose, truth, plain, oidn, se) = choice_and_truth(name, spp, seed);
             assert_eq!(
                 truth, want_oidn,
                 "{name} seed {seed}: the scene no longer tests what it is here for (MSE plain {plain:.3e}, OIDN {oidn:.3e})"
             );
-            assert_eq!(
-                chose,
-                want_oidn,
-                "{name} seed {seed}: the check chose {} (MSE plain {plain:.3e}, OIDN {oidn:.3e})",
+            let near_tie = oidn.max(plain) <= 1.25 * oidn.min(plain);
+            assert!(
+                chose == want_oidn || near_tie,
+                "{name} seed {seed}: the check chose {} (MSE plain {plain:.3e}, OIDN {oidn:.3e}, the check's standard error {se:.1e})",
                 if chose { "OIDN" } else { "plain" }
             );
         }

@@ -268,6 +268,15 @@ impl EmitterSelection {
         unreachable!("the loop returns at its last candidate")
     }
 
+    /// The one emitter a vertex can pick, where there is exactly one (picked with
+    /// probability 1 and the sample passed on unchanged).
+    pub fn single(&self) -> Option<usize> {
+        match self.candidates.as_slice() {
+            [only] => Some(*only as usize),
+            _ => None,
+        }
+    }
+
     /// The probability that [`EmitterSelection::select`] at `p` picks `index`.
     #[inline]
     pub fn pdf(&self, p: Vec3A, index: usize) -> f32 {

@@ -5,15 +5,15 @@
 //! equal it in expectation, and the tests render the same scenes with both.
 //!
 //! It takes the scenes whose paths need little but lane arithmetic ([`PacketScene::new`]
-//! lists them and says why a scene is refused): media in `null` spheres and diffuse
-//! rectangles, disks and spheres in empty space, lit by point, spot and directional
-//! emitters and a `constant` sky. A vertex is then a free flight, the tests of a few
-//! shapes, an emitter sample and a phase or BSDF sample. All of it runs in lanes but the
-//! emitter's choice and direction (`emitter::selection`, `Emitter::sample_direction`),
-//! which are called per lane, as the scalar path calls them; their shadow rays' tests
-//! and transmittances are in lanes again. The emitters taken are delta lights (their
-//! samples need no MIS weight, and no path meets them) and a constant sky, which volpath
-//! leaves to BSDF and phase sampling, so a path that escapes sees it with weight 1.
+//! lists them and says why a scene is refused): media in `null` spheres and cubes, and
+//! diffuse rectangles, disks and spheres, in empty space, lit by area emitters on those
+//! surfaces, point, spot and directional emitters and a `constant` sky. A vertex is
+//! then a free flight, the tests of a few shapes, an emitter sample and a phase or BSDF
+//! sample. All of it runs in lanes but the emitter's choice and direction
+//! (`emitter::selection`, `Emitter::sample_direction`) and the emission of an emitter a
+//! path meets, which are called per lane, as the scalar path calls them; the shadow
+//! rays' tests and transmittances are in lanes again. A constant sky is left to BSDF
+//! and phase sampling under volpath, so a path that escapes sees it with weight 1.
 //!
 //! The estimator is the scalar one's, step for step, with the random draws in the
 //! scalar path's order (the hero channel; per vertex the roulette, the distance, the
@@ -22,9 +22,11 @@
 //! expectation is the same:
 //! * shadow rays are not rouletted by the clearance (their transmittance is exact
 //!   either way, and in lanes cheaper than the roulette's bookkeeping);
-//! * a sphere's exit is its far root and its entry the near one, in the forms of the
-//!   quadratic's roots without cancellation, and the surface a path leaves is skipped
-//!   instead of offsetting the ray (the side a path is on is its state);
+//! * an area emitter at the end of a flight through a medium is counted when the
+//!   flight reaches it, not in expectation (volpath's module comment);
+//! * a shape's exit is its far side and its entry the near one (a sphere's roots in
+//!   the forms without cancellation, a box's slabs), and the surface a path leaves is
+//!   skipped instead of offsetting the ray (the side a path is on is its state);
 //! * Henyey–Greenstein sampling is `medium::phase`'s by the distance from the peak, in
 //!   f32 (the packet takes |g| ≤ [`MAX_ABS_G`] only); Lambert's cosine law by the
 //!   polar map instead of the concentric one.
@@ -38,13 +40,14 @@ use glam::{Vec3, Vec3A};
 use wide::{CmpEq, CmpGe, CmpGt, CmpLt};
 
 use super::sample::PathSample;
-use crate::geometry::SHADOW_EPSILON;
+use crate::geometry::{RAY_EPSILON, SHADOW_EPSILON};
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
 pub use lanes::WIDTH;
 use lanes::{draw_1d, draw_2d, lanes_of, mask_of, L, V3};
+use scene::LaneEmitter;
 pub use scene::{PacketScene, PacketSettings, MAX_ABS_G};
-use shapes::{shadow_transmittance, surface_hit, surface_normal, SphereRoots};
+use shapes::{medium_normal, shadow_transmittance, surface_hit, surface_normal, MediumSpan};
 
 /// Consecutive null-boundary crossings after which a path ends (volpath's limit).
 const MAX_NULL_CROSSINGS: f32 = 65536.0;
@@ -61,21 +64,118 @@ struct MediumLanes {
 }
 
 /// Emitter samples from points of the lanes, before the shadow ray: direction,
-/// distance, and `L_e G / (pdf p_select)` (0 where nothing was sampled).
+/// distance, `L_e G / (pdf p_select)` (0 where nothing was sampled), the solid-angle
+/// pdf with the selection's, and whether it is a delta light's (no MIS weight).
 struct EmitterLanes {
     d: V3,
     dist: L,
     value: V3,
     some: L,
+    pdf: L,
+    delta: L,
 }
 
-/// An emitter sample per lane of `mask` from its point `p`, by the scalar code
-/// (`volpath`'s `medium_emitter_sample` and `sample_light_at_surface` up to the shadow
-/// ray), one `next_2d` each.
-fn sample_emitters(scene: &Scene, p: V3, mask: L, rngs: &mut [Pcg32]) -> EmitterLanes {
+impl EmitterLanes {
+    /// The MIS weight against BSDF or phase sampling of pdf `other` (1 for a delta
+    /// light).
+    #[inline(always)]
+    fn weight(&self, other: L) -> L {
+        self.delta.blend(L::ONE, mis_weight(self.pdf, other))
+    }
+}
+
+/// The power heuristic `a² / (a² + b²)`, 0 where not finite (`sampling::mis_weight`).
+#[inline(always)]
+fn mis_weight(a: L, b: L) -> L {
+    let (a2, b2) = (a * a, b * b);
+    let w = a2 / (a2 + b2);
+    w.is_finite().blend(w, L::ZERO)
+}
+
+/// An emitter sample per lane of `mask` from its point `p`, one `next_2d` each: in
+/// lanes where the scene has one emitter to pick of a kind the packet samples
+/// ([`LaneEmitter`]), else by the scalar code per lane (`volpath`'s
+/// `medium_emitter_sample` and `sample_light_at_surface` up to the shadow ray).
+fn sample_emitters(
+    scene: &Scene,
+    ps: &PacketScene,
+    p: V3,
+    mask: L,
+    rngs: &mut [Pcg32],
+) -> EmitterLanes {
+    let shorten = L::splat(1.0 - SHADOW_EPSILON);
+    let lanes = |d: V3, dist: L, value: V3, some: L, pdf: L, delta: bool| EmitterLanes {
+        d,
+        dist: dist * shorten,
+        some: mask & some & !value.is_zero(),
+        value,
+        pdf,
+        delta: if delta { mask } else { L::ZERO },
+    };
+    match ps.lane_emitter {
+        LaneEmitter::Point {
+            position,
+            intensity,
+        } => {
+            let _ = draw_2d(mask, rngs);
+            let v = V3::splat(position).sub(p);
+            let dist2 = v.dot(v);
+            let dist = dist2.sqrt();
+            let value = V3::splat(intensity).div(dist2);
+            let some = dist2.cmp_gt(L::ZERO);
+            return lanes(v.div(dist), dist, value, some, L::ONE, true);
+        }
+        LaneEmitter::Directional {
+            toward,
+            irradiance,
+            bsphere: (center, radius),
+        } => {
+            let _ = draw_2d(mask, rngs);
+            let c = p.sub(V3::splat(center));
+            let r = L::splat(radius).max(c.dot(c).sqrt());
+            let dist = L::splat(2.0) * r;
+            return lanes(
+                V3::splat(toward),
+                dist,
+                V3::splat(irradiance),
+                mask,
+                L::ONE,
+                true,
+            );
+        }
+        LaneEmitter::Rectangle {
+            rows,
+            normal,
+            area,
+            radiance,
+        } => {
+            // A point uniform on the rectangle; pdf_ω = pdf_A r² / |cos θ_light|, from
+            // the front side only.
+            let (u1, u2) = draw_2d(mask, rngs);
+            let (x, y) = (L::splat(2.0) * u1 - L::ONE, L::splat(2.0) * u2 - L::ONE);
+            let [px, py, pz] = rows.map(|r| L::splat(r.x) * x + L::splat(r.y) * y + L::splat(r.w));
+            let v = V3 {
+                x: px,
+                y: py,
+                z: pz,
+            }
+            .sub(p);
+            let dist2 = v.dot(v);
+            let dist = dist2.sqrt();
+            let d = v.div(dist);
+            let cos = V3::splat(normal).dot(d);
+            let pdf = dist2 / (L::splat(area) * -cos);
+            let some = cos.cmp_lt(L::ZERO) & pdf.is_finite() & pdf.cmp_gt(L::ZERO);
+            let value = V3::splat(radiance).scale(some.blend(L::ONE / pdf, L::ZERO));
+            return lanes(d, dist, value, some, pdf, false);
+        }
+        LaneEmitter::Scalar => {}
+    }
     let mut d = [Vec3::Z; WIDTH];
     let mut dist = [0f32; WIDTH];
     let mut value = [Vec3::ZERO; WIDTH];
+    let mut pdf = [0f32; WIDTH];
+    let mut delta = [false; WIDTH];
     for k in lanes_of(mask.move_mask()) {
         let u = rngs[k].next_2d();
         let pk = p.lane_a(k);
@@ -87,6 +187,8 @@ fn sample_emitters(scene: &Scene, p: V3, mask: L, rngs: &mut [Pcg32]) -> Emitter
             d[k] = Vec3::from(es.d);
             dist[k] = (es.p - pk).length() * (1.0 - SHADOW_EPSILON);
             value[k] = es.weight / p_select;
+            pdf[k] = es.pdf * p_select;
+            delta[k] = es.delta;
         }
     }
     let value = V3::from_fn(|k| value[k]);
@@ -95,6 +197,8 @@ fn sample_emitters(scene: &Scene, p: V3, mask: L, rngs: &mut [Pcg32]) -> Emitter
         dist: L::from(dist),
         some: mask & !value.is_zero(),
         value,
+        pdf: L::from(pdf),
+        delta: mask_of(|k| delta[k]),
     }
 }
 
@@ -123,12 +227,18 @@ pub fn sample_packet(
     let mut result = V3::splat(Vec3::ZERO);
     let mut d_result = V3::splat(Vec3::ZERO);
     let mut depth = L::ZERO;
-    // The medium sphere each path is in, and the surface it is on (as f32; −1: none).
-    let mut sphere = none;
+    // The medium shape each path is in, and the surface it is on (as f32; −1: none).
+    let mut inside = none;
     let mut on_surface = none;
     // Null-boundary crossings since the last vertex (volpath's MAX_NULL_CROSSINGS: a
     // ray caught at a grazing exit would otherwise cross forever).
     let mut crossings = L::ZERO;
+    // Where each path last scattered and the pdf of the direction it took there (for
+    // the MIS weight of an area emitter it meets), and the emission its camera ray
+    // meets first (`PathSample::seen_emission`).
+    let mut last_p = o;
+    let mut last_pdf = L::ONE;
+    let mut seen_emission = V3::splat(Vec3::ZERO);
     let mut valid = if !ps.hide_emitters && ps.has_environment {
         alive
     } else {
@@ -184,18 +294,17 @@ pub fn sample_packet(
         }
 
         // ---- Where each ray ends: its sphere's far side, or the nearest shape ----
-        let in_medium = alive & sphere.cmp_ge(L::ZERO);
+        let in_medium = alive & inside.cmp_ge(L::ZERO);
         let in_space = alive & !in_medium;
         let mut t_end = inf;
         let mut entered = none;
         let mut hit_surface = none;
-        for (i, s) in ps.spheres.iter().enumerate() {
-            let roots = SphereRoots::new(o, d, s.center, s.radius2);
+        for (i, m) in ps.media_shapes.iter().enumerate() {
+            let span = MediumSpan::new(&m.kind, o, d);
             let index = L::splat(i as f32);
-            t_end = (in_medium & sphere.cmp_eq(index)).blend(roots.exit(), t_end);
-            let (enters, near, _) = roots.entry();
-            let enters = in_space & enters & near.cmp_lt(t_end) & near.cmp_lt(tmax);
-            t_end = enters.blend(near, t_end);
+            t_end = (in_medium & inside.cmp_eq(index)).blend(span.exit, t_end);
+            let enters = in_space & span.enters & span.near.cmp_lt(t_end) & span.near.cmp_lt(tmax);
+            t_end = enters.blend(span.near, t_end);
             entered = enters.blend(index, entered);
         }
         if in_space.any() {
@@ -214,7 +323,7 @@ pub fn sample_packet(
             let m = match &single_medium {
                 Some(m) => m,
                 None => {
-                    gathered = gather_media(ps, settings, sphere, in_medium, &hero_of);
+                    gathered = gather_media(ps, settings, inside, in_medium, &hero_of);
                     &gathered
                 }
             };
@@ -236,6 +345,8 @@ pub fn sample_packet(
                 d_beta = d_beta.select(in_medium, d_beta.mul(w));
                 r_u = r_u.select(in_medium, r_u.mul(w));
             }
+            // dβ without this vertex's own α (for the power tests' wrong variant only).
+            let mut d_beta_before = d_beta.mul(m.albedo);
             // d(β α)/dα: dβ a + β b at a vertex (Gradient::vertex_factors).
             d_beta = d_beta.select(collided, d_beta.mul(m.a).add(beta.mul(m.b)));
             beta = beta.select(collided, beta.mul(m.albedo));
@@ -244,6 +355,7 @@ pub fn sample_packet(
                 let k = in_medium.blend(r_u.mean(), L::ONE);
                 beta = beta.div(k);
                 d_beta = d_beta.div(k);
+                d_beta_before = d_beta_before.div(k);
                 r_u = r_u.div(k);
             }
             alive &= !in_medium | (beta.is_finite() & r_u.is_finite() & d_beta.is_finite());
@@ -256,18 +368,27 @@ pub fn sample_packet(
                 let p = o.add(d.scale(flight));
                 // ---- Emitter sampling from the medium vertex ----
                 if ps.samples_emitters {
-                    let es = sample_emitters(scene, p, collided, rngs);
+                    let es = sample_emitters(scene, ps, p, collided, rngs);
                     if es.some.any() {
                         let phase = scatter::eval_hg(m.g, d.dot(es.d));
-                        let tr = shadow_transmittance(ps, p, es.d, es.dist, sphere, none, es.some);
-                        let x = es.value.mul(tr).scale(phase);
+                        let tr = shadow_transmittance(ps, p, es.d, es.dist, inside, none, es.some);
+                        let x = es.value.mul(tr).scale(phase * es.weight(phase));
+                        let weight_of_x = if settings.nee_ignores_vertex {
+                            d_beta_before
+                        } else {
+                            d_beta
+                        };
                         result = result.select(es.some, result.add(beta.mul(x)));
-                        d_result = d_result.select(es.some, d_result.add(d_beta.mul(x)));
+                        d_result = d_result.select(es.some, d_result.add(weight_of_x.mul(x)));
                     }
                 }
                 // ---- Phase function sampling ----
                 let (u1, u2) = draw_2d(collided, rngs);
                 let wo = scatter::sample_hg(d, m.g, u1, u2);
+                if ps.area_emitters {
+                    last_p = last_p.select(collided, p);
+                    last_pdf = collided.blend(scatter::eval_hg(m.g, d.dot(wo)), last_pdf);
+                }
                 o = o.select(collided, p);
                 d = d.select(collided, wo);
             }
@@ -275,14 +396,29 @@ pub fn sample_packet(
             // Through the null boundary into empty space.
             let passed = passed & alive;
             o = o.select(passed, o.add(d.scale(t_end)));
-            sphere = passed.blend(none, sphere);
+            inside = passed.blend(none, inside);
         }
 
         // ---- In empty space: into a medium, onto a surface, or out to the sky ----
         let enters = in_space & entered.cmp_ge(L::ZERO);
         let at_surface = in_space & hit_surface.cmp_ge(L::ZERO);
         o = o.select(enters | at_surface, o.add(d.scale(t_end)));
-        sphere = enters.blend(entered, sphere);
+        if enters.any() {
+            // The scalar path (as Mitsuba's) starts inside a medium it enters off the
+            // boundary by the spawn offset (`geometry::offset_point`); in a medium whose
+            // mean free path is that short the offset shows, so the packet takes it too.
+            let mut n = V3::splat(Vec3::ZERO);
+            for (i, m) in ps.media_shapes.iter().enumerate() {
+                let here = enters & entered.cmp_eq(L::splat(i as f32));
+                if here.any() {
+                    n = n.select(here, medium_normal(&m.kind, o));
+                }
+            }
+            let extent = o.abs().max_element();
+            let offset = (L::splat(ps.offset_scale) + extent) * L::splat(RAY_EPSILON);
+            o = o.select(enters, o.sub(n.scale(offset)));
+        }
+        inside = enters.blend(entered, inside);
         crossings = (enters | in_medium).blend(crossings + L::ONE, crossings);
         alive &= !crossings.cmp_gt(L::splat(MAX_NULL_CROSSINGS));
         on_surface = in_medium.blend(none, on_surface);
@@ -304,16 +440,33 @@ pub fn sample_packet(
             // ends, as a failed sample ends the scalar one; it counts as met.)
             valid |= at_surface;
             let (n, rho) = surface_lanes(ps, hit_surface, o, at_surface);
+            if ps.area_emitters {
+                // ---- An area emitter's surface: its emission, MIS-weighted ----
+                let seen = surface_emission(
+                    scene,
+                    ps,
+                    hit_surface,
+                    at_surface,
+                    (o, n, d),
+                    depth,
+                    (last_p, last_pdf),
+                );
+                result = result.add(beta.mul(seen));
+                d_result = d_result.add(d_beta.mul(seen));
+                let first = at_surface & depth.cmp_eq(L::ZERO) & crossings.cmp_eq(L::ZERO);
+                seen_emission = seen_emission.select(first, seen);
+            }
             let cos_in = -d.dot(n);
             let front = at_surface & cos_in.cmp_gt(L::ZERO);
             let nee = at_surface & (depth + L::ONE).cmp_lt(max_depth);
             if ps.samples_emitters && nee.any() {
-                let es = sample_emitters(scene, o, nee, rngs);
+                let es = sample_emitters(scene, ps, o, nee, rngs);
                 let cos_out = es.d.dot(n);
                 let lit = es.some & front & cos_out.cmp_gt(L::ZERO);
                 if lit.any() {
                     let tr = shadow_transmittance(ps, o, es.d, es.dist, none, hit_surface, lit);
-                    let f = rho.scale(cos_out * L::splat(std::f32::consts::FRAC_1_PI));
+                    let pdf = cos_out * L::splat(std::f32::consts::FRAC_1_PI);
+                    let f = rho.scale(pdf * es.weight(pdf));
                     let x = f.mul(es.value).mul(tr);
                     result = result.select(lit, result.add(beta.mul(x)));
                     d_result = d_result.select(lit, d_result.add(d_beta.mul(x)));
@@ -324,6 +477,10 @@ pub fn sample_packet(
             let _ = draw_1d(at_surface, rngs);
             let (u1, u2) = draw_2d(at_surface, rngs);
             let wo = scatter::sample_cosine(n, u1, u2);
+            if ps.area_emitters {
+                last_p = last_p.select(front, o);
+                last_pdf = front.blend(wo.dot(n) * L::splat(std::f32::consts::FRAC_1_PI), last_pdf);
+            }
             // Weight f cos / pdf = ρ.
             beta = beta.select(front, beta.mul(rho));
             d_beta = d_beta.select(front, d_beta.mul(rho));
@@ -341,10 +498,48 @@ pub fn sample_packet(
         *s = PathSample {
             radiance: result.lane(k),
             second: d_result.lane(k),
-            seen_emission: Vec3::ZERO,
+            seen_emission: seen_emission.lane(k),
             valid: valid >> k & 1 == 1,
         };
     }
+}
+
+/// The emission the lanes of `mask` see on the surfaces `surface` they met at
+/// `(p, n)` along `d`, weighted as volpath's `emission_seen` weighs it: in full at
+/// depth 0 (none where emitters are hidden), else by MIS against emitter sampling from
+/// the last vertex `(last_p, last_pdf)`. Per lane by the scalar code: an emitter is
+/// met rarely.
+fn surface_emission(
+    scene: &Scene,
+    ps: &PacketScene,
+    surface: L,
+    mask: L,
+    (p, n, d): (V3, V3, V3),
+    depth: L,
+    (last_p, last_pdf): (V3, L),
+) -> V3 {
+    let surface = surface.to_array();
+    let (depth, last_pdf) = (depth.to_array(), last_pdf.to_array());
+    let mut le = [Vec3::ZERO; WIDTH];
+    for k in lanes_of(mask.move_mask()) {
+        let Some(ei) = ps.surfaces[surface[k] as usize].emitter else {
+            continue;
+        };
+        if depth[k] == 0.0 && ps.hide_emitters {
+            continue;
+        }
+        let e = &scene.emitters[ei as usize];
+        let (pk, nk, dk) = (p.lane_a(k), n.lane_a(k), d.lane_a(k));
+        le[k] = if depth[k] == 0.0 {
+            e.eval(nk, dk)
+        } else {
+            let from = last_p.lane_a(k);
+            let (l, pdf) = e.eval_and_pdf(from, pk, nk, dk, &scene.geometries);
+            let em_pdf = pdf * scene.emitter_selection.pdf(from, ei as usize);
+            l * crate::sampling::mis_weight(last_pdf[k], em_pdf)
+        };
+    }
+    V3::from_fn(|k| le[k])
 }
 
 /// The normal and reflectance of the surfaces `surface` (indices as f32) the lanes of
@@ -367,15 +562,15 @@ fn surface_lanes(ps: &PacketScene, surface: L, p: V3, mask: L) -> (V3, V3) {
 fn gather_media(
     ps: &PacketScene,
     settings: &PacketSettings,
-    sphere: L,
+    inside: L,
     mask: L,
     hero_of: &impl Fn(V3) -> L,
 ) -> MediumLanes {
-    let spheres = sphere.to_array();
+    let shapes = inside.to_array();
     let bits = mask.move_mask();
     let medium: [usize; WIDTH] = std::array::from_fn(|k| {
         if bits >> k & 1 == 1 {
-            ps.spheres[spheres[k] as usize].medium as usize
+            ps.media_shapes[shapes[k] as usize].medium as usize
         } else {
             0
         }

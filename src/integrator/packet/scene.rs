@@ -1,10 +1,11 @@
 //! Which scenes the packet kernel takes, and what it keeps of them: media spheres,
 //! diffuse surfaces, media, emitters and the integrator's settings.
 
-use glam::{Vec3, Vec4};
+use glam::{Mat4, Vec3, Vec4};
 
 use crate::bsdf::Bsdf;
 use crate::emitter::Emitter;
+use crate::geometry::cuboid::Cuboid;
 use crate::geometry::shape::Geometry;
 use crate::integrator::volpath::{Gradient, PathSettings};
 use crate::medium::Phase;
@@ -18,12 +19,26 @@ pub const MAX_ABS_G: f32 = 0.95;
 /// radius (a floor the sphere rests on touches it in one point, up to rounding).
 const TOUCH_TOLERANCE: f32 = 1e-5;
 
-/// A `null` sphere filled with a homogeneous medium, in empty space.
+/// The shape of a `null` boundary filled with a homogeneous medium.
 #[derive(Clone, Copy, Debug)]
-pub struct MediumSphere {
-    pub center: Vec3,
-    pub radius2: f32,
+pub enum MediumKind {
+    Sphere {
+        center: Vec3,
+        radius2: f32,
+    },
+    /// Mitsuba's `cube`: the rows of the map from the world to its [-1, 1]³.
+    Box {
+        rows: [Vec4; 3],
+    },
+}
+
+/// A medium in a sphere or a box, in empty space.
+#[derive(Clone, Copy, Debug)]
+pub struct MediumShape {
+    pub kind: MediumKind,
     pub medium: u32,
+    /// A sphere around it (centre, radius), for the scene's overlap checks.
+    bound: (Vec3, f32),
 }
 
 /// The shape of a diffuse surface.
@@ -42,11 +57,15 @@ pub enum SurfaceShape {
     },
 }
 
-/// An opaque `diffuse` surface (front side only, constant reflectance).
+/// An opaque `diffuse` surface (front side only, constant reflectance), and the
+/// area emitter on it, if any.
 #[derive(Clone, Copy, Debug)]
 pub struct Surface {
     pub shape: SurfaceShape,
     pub reflectance: Vec3,
+    pub emitter: Option<u32>,
+    /// A sphere around it (centre, radius), for the scene's overlap checks.
+    bound: (Vec3, f32),
 }
 
 /// A medium's extinction and phase function (the albedo is the render's).
@@ -57,10 +76,34 @@ pub struct PacketMedium {
     pub g: f32,
 }
 
+/// The scene's one emitter to sample, where it is one whose sample the packet draws in
+/// lanes (`Emitter::sample_direction`'s forms); else the scalar code samples per lane.
+#[derive(Clone, Copy, Debug)]
+pub enum LaneEmitter {
+    Scalar,
+    Point {
+        position: Vec3,
+        intensity: Vec3,
+    },
+    /// Light arriving along `-toward` from the scene's bounding sphere (centre, radius).
+    Directional {
+        toward: Vec3,
+        irradiance: Vec3,
+        bsphere: (Vec3, f32),
+    },
+    /// An area light on a rectangle: the rows of its `to_world`, its normal and area.
+    Rectangle {
+        rows: [Vec4; 3],
+        normal: Vec3,
+        area: f32,
+        radiance: Vec3,
+    },
+}
+
 /// What the packet kernel needs of a scene it takes.
 #[derive(Clone, Debug)]
 pub struct PacketScene {
-    pub spheres: Vec<MediumSphere>,
+    pub media_shapes: Vec<MediumShape>,
     pub surfaces: Vec<Surface>,
     pub media: Vec<PacketMedium>,
     /// The sky's radiance (0 where there is none).
@@ -69,22 +112,29 @@ pub struct PacketScene {
     /// Whether a vertex has an emitter to sample (a sky alone is left to BSDF and
     /// phase sampling under volpath: `emitter::selection`).
     pub samples_emitters: bool,
+    /// Whether an emitter is an area light: its samples and hits take MIS weights.
+    pub area_emitters: bool,
+    /// How emitter samples are drawn.
+    pub lane_emitter: LaneEmitter,
     pub max_depth: u32,
     pub rr_depth: u32,
     pub hide_emitters: bool,
     /// Every medium's σ_t is the same in all channels: no transmittance is needed.
     pub grey: bool,
+    /// The scene's size, for the offset of a ray entering a medium
+    /// (`geometry::offset_point`).
+    pub offset_scale: f32,
 }
 
 impl PacketScene {
     /// The packet form of `scene`, or why its paths need the scalar integrator. Taken:
-    /// `volpath` with the camera in empty space; shapes that are `null` spheres each
-    /// bounding a homogeneous medium inside empty space (no two touching), or
-    /// rectangles, disks and spheres with a constant `diffuse` BSDF that reach into no
-    /// medium sphere; isotropic or Henyey–Greenstein (|g| ≤ [`MAX_ABS_G`]) phase
-    /// functions; point, spot and directional emitters and a `constant` sky (emitters
-    /// sampled by their delta alone need no MIS weight, and a constant sky is never
-    /// sampled under volpath, so none is needed on escape either).
+    /// `volpath` with the camera in empty space; shapes that are `null` spheres or
+    /// cubes each bounding a homogeneous medium inside empty space (no two within
+    /// reach of each other), or rectangles, disks and spheres with a constant `diffuse`
+    /// BSDF that reach into no medium; isotropic or Henyey–Greenstein (|g| ≤
+    /// [`MAX_ABS_G`]) phase functions; area emitters on those surfaces, point, spot and
+    /// directional emitters and a `constant` sky (never sampled under volpath, so a path
+    /// that escapes sees it with weight 1).
     pub fn new(scene: &Scene) -> Result<PacketScene, String> {
         if scene.integrator.kind != IntegratorKind::Volpath {
             return Err("the integrator is not volpath".into());
@@ -95,70 +145,80 @@ impl PacketScene {
         if scene.ray_log.is_some() {
             return Err("casts are being logged".into());
         }
-        let mut spheres = Vec::new();
+        let mut media_shapes = Vec::new();
         let mut surfaces = Vec::new();
-        for (shape, geometry) in scene.shapes.iter().zip(&scene.geometries) {
-            if shape.emitter.is_some() {
-                return Err("a shape emits".into());
-            }
-            let bsdf = &scene.bsdfs[shape.bsdf as usize];
-            match (geometry, bsdf, shape.interior, shape.exterior) {
-                (Geometry::Sphere(s), Bsdf::Null, Some(medium), None) if !s.flip_normals => spheres
-                    .push(MediumSphere {
-                        center: Vec3::from(s.center),
-                        radius2: s.radius * s.radius,
+        for (info, geometry) in scene.shapes.iter().zip(&scene.geometries) {
+            let bsdf = &scene.bsdfs[info.bsdf as usize];
+            match (bsdf, info.interior, info.exterior) {
+                (Bsdf::Null, Some(medium), None) if info.emitter.is_none() => {
+                    let Some((kind, bound)) = medium_kind(geometry) else {
+                        return Err(
+                            "a null shape bounding a medium is not a sphere or a cube".into()
+                        );
+                    };
+                    media_shapes.push(MediumShape {
+                        kind,
                         medium,
-                    }),
-                (_, Bsdf::Null, _, _) => {
-                    return Err(
-                        "a null shape is not a sphere bounding a medium inside empty space".into(),
-                    )
+                        bound,
+                    })
                 }
-                (g, Bsdf::Diffuse { reflectance }, None, None) => {
+                (Bsdf::Null, _, _) => {
+                    return Err("a null shape does not bound a medium inside empty space".into())
+                }
+                (Bsdf::Diffuse { reflectance }, None, None) => {
                     let Some(reflectance) = reflectance.constant() else {
                         return Err("a diffuse reflectance is textured".into());
                     };
-                    let shape = match g {
-                        Geometry::Sphere(s) if !s.flip_normals => SurfaceShape::Sphere {
-                            center: Vec3::from(s.center),
-                            radius2: s.radius * s.radius,
-                        },
-                        Geometry::Planar(p) => SurfaceShape::Planar {
-                            rows: [p.to_local.row(0), p.to_local.row(1), p.to_local.row(2)],
-                            normal: Vec3::from(p.normal),
-                            disk: p.is_disk,
-                        },
+                    let (shape, bound) = match geometry {
+                        Geometry::Sphere(s) if !s.flip_normals => {
+                            let center = Vec3::from(s.center);
+                            let shape = SurfaceShape::Sphere {
+                                center,
+                                radius2: s.radius * s.radius,
+                            };
+                            (shape, (center, s.radius))
+                        }
+                        Geometry::Planar(p) => {
+                            let shape = SurfaceShape::Planar {
+                                rows: [p.to_local.row(0), p.to_local.row(1), p.to_local.row(2)],
+                                normal: Vec3::from(p.normal),
+                                disk: p.is_disk,
+                            };
+                            let center = p.to_world.transform_point3(Vec3::ZERO);
+                            let radius = [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
+                                .into_iter()
+                                .map(|(x, y)| {
+                                    p.to_world
+                                        .transform_point3(Vec3::new(x, y, 0.0))
+                                        .distance(center)
+                                })
+                                .fold(0.0f32, f32::max);
+                            (shape, (center, radius))
+                        }
                         _ => {
                             return Err("a diffuse shape is not a rectangle, disk or sphere".into())
                         }
                     };
-                    surfaces.push(Surface { shape, reflectance });
+                    surfaces.push(Surface {
+                        shape,
+                        reflectance,
+                        emitter: info.emitter,
+                        bound,
+                    });
                 }
                 _ => return Err("a shape's BSDF is not null or diffuse".into()),
             }
         }
-        for (i, a) in spheres.iter().enumerate() {
-            for b in &spheres[..i] {
-                let reach = a.radius2.sqrt() + b.radius2.sqrt();
-                if a.center.distance(b.center) <= reach {
-                    return Err("two medium spheres touch or overlap".into());
+        for (i, a) in media_shapes.iter().enumerate() {
+            let (c, r) = a.bound;
+            for b in &media_shapes[..i] {
+                if c.distance(b.bound.0) <= r + b.bound.1 {
+                    return Err("two media shapes are within reach of each other".into());
                 }
             }
-            let r = a.radius2.sqrt();
             for s in &surfaces {
-                let clear = match s.shape {
-                    SurfaceShape::Sphere { center, radius2 } => {
-                        a.center.distance(center) >= r + radius2.sqrt()
-                    }
-                    SurfaceShape::Planar { rows, .. } => {
-                        // The plane z = 0 of the shape's space: its distance from the
-                        // centre is |z_local| over the gradient's length.
-                        let z = rows[2].dot(a.center.extend(1.0));
-                        z.abs() >= r * (1.0 - TOUCH_TOLERANCE) * rows[2].truncate().length()
-                    }
-                };
-                if !clear {
-                    return Err("a diffuse surface reaches into a medium sphere".into());
+                if !clear_of(a, s) {
+                    return Err("a diffuse surface reaches into a medium".into());
                 }
             }
         }
@@ -186,6 +246,7 @@ impl PacketScene {
         }
         let mut environment = Vec3::ZERO;
         let mut samples_emitters = false;
+        let mut area_emitters = false;
         for (i, e) in scene.emitters.iter().enumerate() {
             match e {
                 Emitter::Constant { radiance } if scene.environment == Some(i as u32) => {
@@ -194,26 +255,142 @@ impl PacketScene {
                 Emitter::Point { .. } | Emitter::Spot(_) | Emitter::Directional { .. } => {
                     samples_emitters = true
                 }
+                // On a surface taken above (the shapes loop refuses any other).
+                Emitter::Area { .. } => {
+                    samples_emitters = true;
+                    area_emitters = true;
+                }
                 _ => {
                     return Err(
-                        "an emitter is not a point, spot, directional or constant sky".into(),
+                        "an emitter is not an area, point, spot, directional or constant sky"
+                            .into(),
                     )
                 }
             }
         }
+        if area_emitters && scene.integrator.hide_emitters {
+            // The camera ray would have to pass through the emitters' shapes.
+            return Err("area emitters are hidden".into());
+        }
         let grey = scene.media.iter().all(|m| m.is_grey());
         Ok(PacketScene {
-            spheres,
+            media_shapes,
             surfaces,
             media,
             environment,
             has_environment: scene.environment.is_some(),
             samples_emitters,
+            area_emitters,
+            lane_emitter: lane_emitter(scene),
             max_depth: scene.integrator.max_depth,
             rr_depth: scene.integrator.rr_depth,
             hide_emitters: scene.integrator.hide_emitters,
             grey,
+            offset_scale: scene.offset_scale,
         })
+    }
+}
+
+/// The packet form of the one emitter a vertex can pick, if it has one.
+fn lane_emitter(scene: &Scene) -> LaneEmitter {
+    let Some(i) = scene.emitter_selection.single() else {
+        return LaneEmitter::Scalar;
+    };
+    match &scene.emitters[i] {
+        Emitter::Point {
+            position,
+            intensity,
+        } => LaneEmitter::Point {
+            position: Vec3::from(*position),
+            intensity: *intensity,
+        },
+        Emitter::Directional {
+            direction,
+            irradiance,
+        } => LaneEmitter::Directional {
+            toward: -Vec3::from(*direction),
+            irradiance: *irradiance,
+            bsphere: (Vec3::from(scene.bsphere.center), scene.bsphere.radius),
+        },
+        Emitter::Area { shape, radiance } => match &scene.geometries[*shape as usize] {
+            Geometry::Planar(p) if !p.is_disk => LaneEmitter::Rectangle {
+                rows: [p.to_world.row(0), p.to_world.row(1), p.to_world.row(2)],
+                normal: Vec3::from(p.normal),
+                area: p.area,
+                radiance: *radiance,
+            },
+            _ => LaneEmitter::Scalar,
+        },
+        _ => LaneEmitter::Scalar,
+    }
+}
+
+/// The medium shape of a sphere (not inside out) or of Mitsuba's `cube` (a mesh
+/// that is the box of its `to_world`), with a sphere around it.
+fn medium_kind(geometry: &Geometry) -> Option<(MediumKind, (Vec3, f32))> {
+    match geometry {
+        Geometry::Sphere(s) if !s.flip_normals => {
+            let center = Vec3::from(s.center);
+            let kind = MediumKind::Sphere {
+                center,
+                radius2: s.radius * s.radius,
+            };
+            Some((kind, (center, s.radius)))
+        }
+        Geometry::Mesh(m) => {
+            let to_world = m.cube_to_world?;
+            Cuboid::new(0, m, &to_world)?;
+            let to_local = to_world.inverse();
+            let rows = [to_local.row(0), to_local.row(1), to_local.row(2)];
+            let center = to_world.transform_point3(Vec3::ZERO);
+            // The farthest corner from the centre bounds the box.
+            let radius = (0..8)
+                .map(|c| {
+                    let corner = Vec3::new(
+                        if c & 1 == 0 { -1.0 } else { 1.0 },
+                        if c & 2 == 0 { -1.0 } else { 1.0 },
+                        if c & 4 == 0 { -1.0 } else { 1.0 },
+                    );
+                    to_world.transform_point3(corner).distance(center)
+                })
+                .fold(0.0f32, f32::max);
+            Some((MediumKind::Box { rows }, (center, radius)))
+        }
+        _ => None,
+    }
+}
+
+/// Whether surface `s` stays out of the medium shape `m`: their bounding spheres apart,
+/// or the surface's plane no nearer the medium's centre than its extent along the
+/// plane's normal (a floor the shape rests on may touch it, up to rounding).
+fn clear_of(m: &MediumShape, s: &Surface) -> bool {
+    let (c, r) = m.bound;
+    if c.distance(s.bound.0) > r + s.bound.1 {
+        return true;
+    }
+    match s.shape {
+        SurfaceShape::Sphere { center, radius2 } => c.distance(center) >= r + radius2.sqrt(),
+        SurfaceShape::Planar { rows, .. } => {
+            // The plane is z = 0 of the surface's space: a point's distance from it is
+            // |z_local| / |∇z_local|.
+            let grad = rows[2].truncate().length();
+            let dist = |p: Vec3| rows[2].dot(p.extend(1.0)).abs() / grad;
+            let normal = rows[2].truncate() / grad;
+            let extent = match m.kind {
+                MediumKind::Sphere { radius2, .. } => radius2.sqrt(),
+                // The box's support along the normal: Σ_k |n · axis_k|, the axes the
+                // columns of to_world (the inverse of `rows`).
+                MediumKind::Box { rows: b } => {
+                    let to_world = Mat4::from_cols(b[0], b[1], b[2], Vec4::W)
+                        .transpose()
+                        .inverse();
+                    (0..3)
+                        .map(|k| normal.dot(to_world.col(k).truncate()).abs())
+                        .sum()
+                }
+            };
+            dist(c) >= extent * (1.0 - TOUCH_TOLERANCE)
+        }
     }
 }
 
@@ -226,6 +403,9 @@ pub struct PacketSettings {
     pub factor_b: Vec<Vec3>,
     /// The difference's paths are rouletted by β + dβ (volpath's roulette).
     pub roulette_by_target: bool,
+    /// The power tests' wrong derivative: a medium vertex's emitter sample weighed by
+    /// dβ without the vertex's own albedo (`Gradient::AlbedoIgnoringNeeVertex`).
+    pub nee_ignores_vertex: bool,
 }
 
 impl PacketSettings {
@@ -243,6 +423,7 @@ impl PacketSettings {
             factor_a,
             factor_b,
             roulette_by_target: matches!(settings.gradient, Gradient::Difference { .. }),
+            nee_ignores_vertex: matches!(settings.gradient, Gradient::AlbedoIgnoringNeeVertex(_)),
         }
     }
 }

@@ -1,14 +1,14 @@
 //! Ray tests in lanes against the packet scene's shapes: one ray per lane, each shape in
-//! turn (a packet scene has a handful). No spawn offsets: a path inside a medium sphere
-//! meets only that sphere's far side, a path in empty space only spheres it enters from
-//! outside, and the surface a path leaves is skipped (a ray leaving a plane or a convex
+//! turn (a packet scene has a handful). No spawn offsets: a path inside a medium's
+//! sphere or box meets only its far side, a path in empty space only those it enters
+//! from outside, and the surface a path leaves is skipped (a ray leaving a plane or a convex
 //! surface outwards cannot meet it again).
 
 use glam::{Vec3, Vec4};
-use wide::{CmpEq, CmpGt, CmpLe, CmpLt};
+use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 use super::lanes::{L, V3};
-use super::scene::{PacketScene, SurfaceShape};
+use super::scene::{MediumKind, PacketScene, SurfaceShape};
 
 /// A ray's quadratic against a sphere (unit direction): |o + t d − c|² = r² is
 /// t² + 2bt + c = 0 with b = (o − c)·d and c = |o − c|² − r².
@@ -54,13 +54,94 @@ impl SphereRoots {
     }
 }
 
+/// A ray against a medium's shape: where it leaves it from inside, and whether and
+/// where it enters it from outside and leaves again.
+pub struct MediumSpan {
+    /// From inside: the distance to the boundary (never below 0).
+    pub exit: L,
+    /// From outside: the lanes whose ray enters, at `near`, leaving at `far`.
+    pub enters: L,
+    pub near: L,
+    pub far: L,
+}
+
+impl MediumSpan {
+    #[inline(always)]
+    pub fn new(kind: &MediumKind, o: V3, d: V3) -> MediumSpan {
+        match kind {
+            MediumKind::Sphere { center, radius2 } => {
+                let roots = SphereRoots::new(o, d, *center, *radius2);
+                let (enters, near, far) = roots.entry();
+                MediumSpan {
+                    exit: roots.exit(),
+                    enters,
+                    near,
+                    far,
+                }
+            }
+            MediumKind::Box { rows } => {
+                // Slab test in the box's space (Kay & Kajiya; `geometry::cuboid`): on
+                // axis k the ray is between the faces x_k = ±1 for t between
+                // (±1 − o_k) / d_k; in the box on the intersection of the three.
+                let mut near = L::splat(f32::NEG_INFINITY);
+                let mut far = L::splat(f32::INFINITY);
+                for r in rows {
+                    let (ok, dk) = (affine_row(*r, o, 1.0), affine_row(*r, d, 0.0));
+                    let inv = L::ONE / dk;
+                    let t1 = (-L::ONE - ok) * inv;
+                    let t2 = (L::ONE - ok) * inv;
+                    near = near.max(t1.min(t2));
+                    far = far.min(t1.max(t2));
+                }
+                MediumSpan {
+                    exit: far.max(L::ZERO),
+                    enters: near.cmp_gt(L::ZERO) & near.cmp_le(far),
+                    near,
+                    far,
+                }
+            }
+        }
+    }
+}
+
+/// The outward normal of a medium's shape at its points `p` (on a box, of the face
+/// whose coordinate is ±1 there: the largest in magnitude).
+#[inline(always)]
+pub fn medium_normal(kind: &MediumKind, p: V3) -> V3 {
+    match kind {
+        MediumKind::Sphere { center, radius2 } => p
+            .sub(V3::splat(*center))
+            .scale(L::splat(1.0 / radius2.sqrt())),
+        MediumKind::Box { rows } => {
+            let [x, y, z] = rows.map(|r| affine_row(r, p, 1.0));
+            let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
+            let on_x = ax.cmp_ge(ay) & ax.cmp_ge(az);
+            let on_y = !on_x & ay.cmp_ge(az);
+            // The face's normal is the gradient of its coordinate (a row of the map),
+            // signed by the side.
+            let grad = |r: Vec4| V3::splat(r.truncate());
+            let g = grad(rows[2])
+                .select(on_y, grad(rows[1]))
+                .select(on_x, grad(rows[0]));
+            let side = on_x.blend(x, on_y.blend(y, z));
+            let g = g.scale(L::ONE.copysign(side));
+            g.scale(L::ONE / g.dot(g).sqrt())
+        }
+    }
+}
+
+/// Row `r` of an affine map applied to `v` with homogeneous coordinate `w` (1 for a
+/// point, 0 for a direction).
+#[inline(always)]
+fn affine_row(r: Vec4, v: V3, w: f32) -> L {
+    L::splat(r.x) * v.x + L::splat(r.y) * v.y + L::splat(r.z) * v.z + L::splat(r.w * w)
+}
+
 /// Where the ray meets a rectangle or disk (`rows`: its `to_local` map), if ahead of
 /// its origin: (mask, t).
 #[inline(always)]
 pub fn planar_hit(o: V3, d: V3, rows: &[Vec4; 3], disk: bool) -> (L, L) {
-    let row = |r: Vec4, v: V3, w: f32| {
-        L::splat(r.x) * v.x + L::splat(r.y) * v.y + L::splat(r.z) * v.z + L::splat(r.w * w)
-    };
+    let row = affine_row;
     let (oz, dz) = (row(rows[2], o, 1.0), row(rows[2], d, 0.0));
     let t = -oz / dz;
     let x = row(rows[0], o, 1.0) + row(rows[0], d, 0.0) * t;
@@ -101,7 +182,7 @@ pub fn surface_normal(ps: &PacketScene, k: usize, p: V3) -> V3 {
 }
 
 /// The transmittance of shadow rays from `o` along unit `d` over `dist`, the origin in
-/// medium sphere `inside` (−1: empty space) and on surface `skip` (−1: none), for the
+/// medium shape `inside` (−1: empty space) and on surface `skip` (−1: none), for the
 /// lanes of `mask`: e^{−σ_t ℓ} for the length ℓ of the ray in each medium sphere, 0
 /// where a surface blocks it.
 #[inline(always)]
@@ -120,15 +201,14 @@ pub fn shadow_transmittance(
         blocked |= hit & t.cmp_lt(dist);
     }
     let mut tr = V3::splat(Vec3::ONE);
-    for (i, s) in ps.spheres.iter().enumerate() {
-        let roots = SphereRoots::new(o, d, s.center, s.radius2);
-        let (enters, near, far) = roots.entry();
-        let through = (far.min(dist) - near.min(dist)).max(L::ZERO);
+    for (i, m) in ps.media_shapes.iter().enumerate() {
+        let span = MediumSpan::new(&m.kind, o, d);
+        let through = (span.far.min(dist) - span.near.min(dist)).max(L::ZERO);
         let from_inside = inside.cmp_eq(L::splat(i as f32));
-        let len = from_inside.blend(roots.exit().min(dist), enters.blend(through, L::ZERO));
+        let len = from_inside.blend(span.exit.min(dist), span.enters.blend(through, L::ZERO));
         if len.cmp_gt(L::ZERO).any() {
             tr = tr.mul(V3::transmittance(
-                V3::splat(ps.media[s.medium as usize].sigma_t),
+                V3::splat(ps.media[m.medium as usize].sigma_t),
                 len,
             ));
         }
