@@ -243,7 +243,7 @@ fn furnace_is_exactly_one_in_scalar_paths_too() {
         .map(|i| {
             let s = common::load_seeded(&scene, &[], SPP, 190 + i as u64);
             assert!(
-                packet_scene(&s, &Default::default()).is_ok(),
+                packet_scene(&s, &s.shot, &Default::default()).is_ok(),
                 "the furnace runs in packets"
             );
             let scalar = RenderOptions {

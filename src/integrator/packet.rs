@@ -228,7 +228,7 @@ pub fn sample_packet(
     let mut d_result = V3::splat(Vec3::ZERO);
     let mut depth = L::ZERO;
     // The medium shape each path is in, and the surface it is on (as f32; −1: none).
-    let mut inside = none;
+    let mut inside = ps.camera_shape.map_or(none, |i| L::splat(i as f32));
     let mut on_surface = none;
     // Null-boundary crossings since the last vertex (volpath's MAX_NULL_CROSSINGS: a
     // ray caught at a grazing exit would otherwise cross forever).
@@ -307,17 +307,25 @@ pub fn sample_packet(
             t_end = enters.blend(span.near, t_end);
             entered = enters.blend(index, entered);
         }
-        if in_space.any() {
-            for k in 0..ps.surfaces.len() {
-                let (hit, t) = surface_hit(ps, k, o, d, on_surface);
-                let hit = in_space & hit & t.cmp_lt(t_end) & t.cmp_lt(tmax);
-                t_end = hit.blend(t, t_end);
-                hit_surface = hit.blend(L::splat(k as f32), hit_surface);
-                entered = hit.blend(none, entered);
+        // The surfaces in the medium (or empty space) each path is in.
+        for (k, surface) in ps.surfaces.iter().enumerate() {
+            let here = alive & inside.cmp_eq(L::splat(surface.container));
+            if here.none() {
+                continue;
             }
+            let (hit, t) = surface_hit(ps, k, o, d, on_surface);
+            let hit = here & hit & t.cmp_lt(t_end) & t.cmp_lt(tmax);
+            t_end = hit.blend(t, t_end);
+            hit_surface = hit.blend(L::splat(k as f32), hit_surface);
+            entered = hit.blend(none, entered);
         }
+        let meets_surface = hit_surface.cmp_ge(L::ZERO);
 
         // ---- Free flight in the medium ----
+        // The flights that reach the surface ahead of them, and those whose emitter
+        // there was counted in expectation.
+        let mut reached = L::ZERO;
+        let mut counted = L::ZERO;
         if in_medium.any() {
             let gathered;
             let m = match &single_medium {
@@ -327,6 +335,34 @@ pub fn sample_packet(
                     &gathered
                 }
             };
+            if ps.area_emitters {
+                // ---- An area emitter ahead, counted in expectation ----
+                // The flight passes to it with probability T_hero and then weighs its
+                // emission by β T / mean(r T): count β T (T_hero / mean(r T)) L_e now,
+                // and not again if the flight does pass (volpath's module comment).
+                let ahead = in_medium & emitting(ps, hit_surface);
+                if ahead.any() {
+                    let p_hit = o.add(d.scale(t_end));
+                    let (n, _) = surface_lanes(ps, hit_surface, p_hit, ahead);
+                    let view = (p_hit, n, d);
+                    let le = surface_emission(
+                        scene,
+                        ps,
+                        hit_surface,
+                        ahead,
+                        view,
+                        depth,
+                        (last_p, last_pdf),
+                    );
+                    let tr = V3::transmittance(m.sigma, t_end);
+                    let pass = tr.scale(hero_of(tr) / r_u.mul(tr).mean());
+                    let x = pass.mul(le);
+                    let finite = ahead & x.is_finite();
+                    result = result.select(finite, result.add(beta.mul(x)));
+                    d_result = d_result.select(finite, d_result.add(d_beta.mul(x)));
+                    counted = ahead & !le.is_zero();
+                }
+            }
             let u = draw_1d(in_medium, rngs);
             let flight = -(L::ONE - u).ln() / m.sigma_hero;
             let flight = m.sigma_hero.cmp_gt(L::ZERO).blend(flight, inf);
@@ -393,16 +429,22 @@ pub fn sample_packet(
                 d = d.select(collided, wo);
             }
             crossings = collided.blend(L::ZERO, crossings);
-            // Through the null boundary into empty space.
+            // On to a surface in the medium, or through the null boundary into empty
+            // space.
             let passed = passed & alive;
             o = o.select(passed, o.add(d.scale(t_end)));
-            inside = passed.blend(none, inside);
+            reached = passed & meets_surface;
+            let leaves = passed & !meets_surface;
+            inside = leaves.blend(none, inside);
+            crossings = leaves.blend(crossings + L::ONE, crossings);
         }
 
         // ---- In empty space: into a medium, onto a surface, or out to the sky ----
         let enters = in_space & entered.cmp_ge(L::ZERO);
-        let at_surface = in_space & hit_surface.cmp_ge(L::ZERO);
-        o = o.select(enters | at_surface, o.add(d.scale(t_end)));
+        let lands = in_space & meets_surface;
+        o = o.select(enters | lands, o.add(d.scale(t_end)));
+        // Paths on a surface: from empty space, or from a flight that reached it.
+        let at_surface = alive & (lands | reached);
         if enters.any() {
             // The scalar path (as Mitsuba's) starts inside a medium it enters off the
             // boundary by the spawn offset (`geometry::offset_point`); in a medium whose
@@ -419,11 +461,11 @@ pub fn sample_packet(
             o = o.select(enters, o.sub(n.scale(offset)));
         }
         inside = enters.blend(entered, inside);
-        crossings = (enters | in_medium).blend(crossings + L::ONE, crossings);
+        crossings = enters.blend(crossings + L::ONE, crossings);
         alive &= !crossings.cmp_gt(L::splat(MAX_NULL_CROSSINGS));
         on_surface = in_medium.blend(none, on_surface);
         on_surface = enters.blend(none, on_surface);
-        let escapes = in_space & !enters & !at_surface;
+        let escapes = in_space & !enters & !lands;
         if escapes.any() {
             let seen = if ps.hide_emitters {
                 escapes & depth.cmp_gt(L::ZERO)
@@ -446,14 +488,17 @@ pub fn sample_packet(
                     scene,
                     ps,
                     hit_surface,
-                    at_surface,
+                    at_surface & !counted,
                     (o, n, d),
                     depth,
                     (last_p, last_pdf),
                 );
                 result = result.add(beta.mul(seen));
                 d_result = d_result.add(d_beta.mul(seen));
-                let first = at_surface & depth.cmp_eq(L::ZERO) & crossings.cmp_eq(L::ZERO);
+                let first = at_surface
+                    & depth.cmp_eq(L::ZERO)
+                    & crossings.cmp_eq(L::ZERO)
+                    & inside.cmp_lt(L::ZERO);
                 seen_emission = seen_emission.select(first, seen);
             }
             let cos_in = -d.dot(n);
@@ -464,7 +509,7 @@ pub fn sample_packet(
                 let cos_out = es.d.dot(n);
                 let lit = es.some & front & cos_out.cmp_gt(L::ZERO);
                 if lit.any() {
-                    let tr = shadow_transmittance(ps, o, es.d, es.dist, none, hit_surface, lit);
+                    let tr = shadow_transmittance(ps, o, es.d, es.dist, inside, hit_surface, lit);
                     let pdf = cos_out * L::splat(std::f32::consts::FRAC_1_PI);
                     let f = rho.scale(pdf * es.weight(pdf));
                     let x = f.mul(es.value).mul(tr);
@@ -540,6 +585,17 @@ fn surface_emission(
         };
     }
     V3::from_fn(|k| le[k])
+}
+
+/// The lanes whose `surface` (indices as f32) is an area emitter's.
+fn emitting(ps: &PacketScene, surface: L) -> L {
+    let mut mask = L::ZERO;
+    for (k, s) in ps.surfaces.iter().enumerate() {
+        if s.emitter.is_some() {
+            mask |= surface.cmp_eq(L::splat(k as f32));
+        }
+    }
+    mask
 }
 
 /// The normal and reflectance of the surfaces `surface` (indices as f32) the lanes of

@@ -86,11 +86,27 @@ impl RenderOptions {
 
 /// The packet form of `scene` where its paths run in lanes (`integrator::packet`) and
 /// the options allow it; else why they run in the scalar integrator.
-pub fn packet_scene(scene: &Scene, opts: &RenderOptions) -> Result<PacketScene, String> {
+pub fn packet_scene(
+    scene: &Scene,
+    shot: &Shot,
+    opts: &RenderOptions,
+) -> Result<PacketScene, String> {
     if opts.scalar_paths || std::env::var("MEDIAREG_PATHS").is_ok_and(|v| v == "scalar") {
         return Err("scalar paths asked for".into());
     }
-    PacketScene::new(scene)
+    let ps = PacketScene::new(scene)?;
+    // The camera rays start on the near plane, a rectangle: its corners inside the
+    // (convex) shape of the camera's medium put every ray's origin there.
+    let (w, h) = (shot.film.width as f32, shot.film.height as f32);
+    let corners = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)];
+    let rays = corners.map(|(x, y)| shot.camera.sample_ray(Vec2::new(x, y)));
+    if !rays
+        .iter()
+        .all(|r| ps.takes_camera_ray(Vec3::from(r.o), r.tmax))
+    {
+        return Err("the camera is not inside its medium's shape, or clips within it".into());
+    }
+    Ok(ps)
 }
 
 /// Camera samples waiting for a packet: their film positions, rays and streams.
@@ -249,7 +265,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         albedo: &albedo,
         gradient,
     };
-    let packets = packet_scene(scene, opts).ok();
+    let packets = packet_scene(scene, shot, opts).ok();
     let packet_settings = PacketSettings::new(&settings);
     let film = &shot.film;
     let (cw, ch) = film.crop_size;

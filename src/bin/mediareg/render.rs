@@ -108,7 +108,7 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
     };
 
     eprintln!("ray caster: {}", scene_data.accel.describe());
-    match integrator::render::packet_scene(&scene_data, &Default::default()) {
+    match integrator::render::packet_scene(&scene_data, &scene_data.shot, &Default::default()) {
         Ok(_) => eprintln!(
             "paths: {} at a time in SIMD lanes",
             integrator::packet::WIDTH

@@ -55,6 +55,10 @@ pub enum SurfaceShape {
         normal: Vec3,
         disk: bool,
     },
+    /// Mitsuba's `cube`: the rows of the map from the world to its [-1, 1]³.
+    Box {
+        rows: [Vec4; 3],
+    },
 }
 
 /// An opaque `diffuse` surface (front side only, constant reflectance), and the
@@ -64,6 +68,8 @@ pub struct Surface {
     pub shape: SurfaceShape,
     pub reflectance: Vec3,
     pub emitter: Option<u32>,
+    /// The medium shape it lies in (as f32, the lanes' type; −1: empty space).
+    pub container: f32,
     /// A sphere around it (centre, radius), for the scene's overlap checks.
     bound: (Vec3, f32),
 }
@@ -124,23 +130,23 @@ pub struct PacketScene {
     /// The scene's size, for the offset of a ray entering a medium
     /// (`geometry::offset_point`).
     pub offset_scale: f32,
+    /// The medium shape the camera is in (the one filled with the sensor's medium).
+    pub camera_shape: Option<u32>,
 }
 
 impl PacketScene {
     /// The packet form of `scene`, or why its paths need the scalar integrator. Taken:
-    /// `volpath` with the camera in empty space; shapes that are `null` spheres or
-    /// cubes each bounding a homogeneous medium inside empty space (no two within
-    /// reach of each other), or rectangles, disks and spheres with a constant `diffuse`
-    /// BSDF that reach into no medium; isotropic or Henyey–Greenstein (|g| ≤
-    /// [`MAX_ABS_G`]) phase functions; area emitters on those surfaces, point, spot and
-    /// directional emitters and a `constant` sky (never sampled under volpath, so a path
-    /// that escapes sees it with weight 1).
+    /// `volpath`; shapes that are `null` spheres or cubes each bounding a homogeneous
+    /// medium inside empty space (no two within reach of each other), or rectangles,
+    /// disks, spheres and cubes with a constant `diffuse` BSDF, each inside one medium
+    /// shape or clear of all; the camera in empty space or in a medium that fills one
+    /// shape ([`PacketScene::takes_camera_ray`] checks a shot's camera); isotropic or
+    /// Henyey–Greenstein (|g| ≤ [`MAX_ABS_G`]) phase functions; area emitters on those
+    /// surfaces, point, spot and directional emitters and a `constant` sky (never
+    /// sampled under volpath, so a path that escapes sees it with weight 1).
     pub fn new(scene: &Scene) -> Result<PacketScene, String> {
         if scene.integrator.kind != IntegratorKind::Volpath {
             return Err("the integrator is not volpath".into());
-        }
-        if scene.camera_medium.is_some() {
-            return Err("the camera is inside a medium".into());
         }
         if scene.ray_log.is_some() {
             return Err("casts are being logged".into());
@@ -195,14 +201,23 @@ impl PacketScene {
                                 .fold(0.0f32, f32::max);
                             (shape, (center, radius))
                         }
-                        _ => {
-                            return Err("a diffuse shape is not a rectangle, disk or sphere".into())
-                        }
+                        g => match medium_kind(g) {
+                            Some((MediumKind::Box { rows }, bound)) => {
+                                (SurfaceShape::Box { rows }, bound)
+                            }
+                            _ => {
+                                return Err(
+                                    "a diffuse shape is not a rectangle, disk, sphere or cube"
+                                        .into(),
+                                )
+                            }
+                        },
                     };
                     surfaces.push(Surface {
                         shape,
                         reflectance,
                         emitter: info.emitter,
+                        container: -1.0,
                         bound,
                     });
                 }
@@ -216,9 +231,13 @@ impl PacketScene {
                     return Err("two media shapes are within reach of each other".into());
                 }
             }
-            for s in &surfaces {
-                if !clear_of(a, s) {
-                    return Err("a diffuse surface reaches into a medium".into());
+        }
+        for s in &mut surfaces {
+            for (i, m) in media_shapes.iter().enumerate() {
+                if contains(m, s.bound) && s.container < 0.0 {
+                    s.container = i as f32;
+                } else if !clear_of(m, s) {
+                    return Err("a diffuse surface crosses a medium's boundary".into());
                 }
             }
         }
@@ -268,6 +287,16 @@ impl PacketScene {
                 }
             }
         }
+        let camera_shape = match scene.camera_medium {
+            None => None,
+            Some(m) => match media_shapes.iter().filter(|s| s.medium == m).count() {
+                1 => media_shapes
+                    .iter()
+                    .position(|s| s.medium == m)
+                    .map(|i| i as u32),
+                _ => return Err("the camera's medium does not fill one sphere or cube".into()),
+            },
+        };
         if area_emitters && scene.integrator.hide_emitters {
             // The camera ray would have to pass through the emitters' shapes.
             return Err("area emitters are hidden".into());
@@ -287,7 +316,24 @@ impl PacketScene {
             hide_emitters: scene.integrator.hide_emitters,
             grey,
             offset_scale: scene.offset_scale,
+            camera_shape,
         })
+    }
+
+    /// Whether a camera ray from `o` that ends at `tmax` (the far clip) starts where the
+    /// scene says the camera is: for a camera in a medium, inside the shape the medium
+    /// fills, and not clipped before it leaves it (in empty space the scalar path
+    /// takes the camera to be there too, wherever it is).
+    pub fn takes_camera_ray(&self, o: Vec3, tmax: f32) -> bool {
+        let Some(i) = self.camera_shape else {
+            return true;
+        };
+        let shape = &self.media_shapes[i as usize];
+        let inside = match shape.kind {
+            MediumKind::Sphere { center, radius2 } => o.distance_squared(center) < radius2,
+            MediumKind::Box { rows } => rows.iter().all(|r| r.dot(o.extend(1.0)).abs() < 1.0),
+        };
+        inside && tmax >= 2.0 * shape.bound.1
     }
 }
 
@@ -360,6 +406,17 @@ fn medium_kind(geometry: &Geometry) -> Option<(MediumKind, (Vec3, f32))> {
     }
 }
 
+/// Whether the sphere `(c, r)` lies inside the medium shape `m`.
+fn contains(m: &MediumShape, (c, r): (Vec3, f32)) -> bool {
+    match m.kind {
+        MediumKind::Sphere { center, radius2 } => c.distance(center) + r <= radius2.sqrt(),
+        // Within the faces on every axis: |x_k| + r |∇x_k| ≤ 1.
+        MediumKind::Box { rows } => rows
+            .iter()
+            .all(|row| row.dot(c.extend(1.0)).abs() + r * row.truncate().length() <= 1.0),
+    }
+}
+
 /// Whether surface `s` stays out of the medium shape `m`: their bounding spheres apart,
 /// or the surface's plane no nearer the medium's centre than its extent along the
 /// plane's normal (a floor the shape rests on may touch it, up to rounding).
@@ -370,6 +427,8 @@ fn clear_of(m: &MediumShape, s: &Surface) -> bool {
     }
     match s.shape {
         SurfaceShape::Sphere { center, radius2 } => c.distance(center) >= r + radius2.sqrt(),
+        // (Its bounding sphere reaches into the medium's: taken as not clear.)
+        SurfaceShape::Box { .. } => false,
         SurfaceShape::Planar { rows, .. } => {
             // The plane is z = 0 of the surface's space: a point's distance from it is
             // |z_local| / |∇z_local|.

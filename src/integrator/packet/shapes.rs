@@ -104,30 +104,34 @@ impl MediumSpan {
     }
 }
 
-/// The outward normal of a medium's shape at its points `p` (on a box, of the face
-/// whose coordinate is ±1 there: the largest in magnitude).
+/// The outward normal of a medium's shape at its points `p`.
 #[inline(always)]
 pub fn medium_normal(kind: &MediumKind, p: V3) -> V3 {
     match kind {
         MediumKind::Sphere { center, radius2 } => p
             .sub(V3::splat(*center))
             .scale(L::splat(1.0 / radius2.sqrt())),
-        MediumKind::Box { rows } => {
-            let [x, y, z] = rows.map(|r| affine_row(r, p, 1.0));
-            let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
-            let on_x = ax.cmp_ge(ay) & ax.cmp_ge(az);
-            let on_y = !on_x & ay.cmp_ge(az);
-            // The face's normal is the gradient of its coordinate (a row of the map),
-            // signed by the side.
-            let grad = |r: Vec4| V3::splat(r.truncate());
-            let g = grad(rows[2])
-                .select(on_y, grad(rows[1]))
-                .select(on_x, grad(rows[0]));
-            let side = on_x.blend(x, on_y.blend(y, z));
-            let g = g.scale(L::ONE.copysign(side));
-            g.scale(L::ONE / g.dot(g).sqrt())
-        }
+        MediumKind::Box { rows } => box_normal(rows, p),
     }
+}
+
+/// The outward normal of the box `rows` (the map to its [-1, 1]³) at its points `p`:
+/// that of the face whose coordinate is ±1 there (the largest in magnitude).
+#[inline(always)]
+fn box_normal(rows: &[Vec4; 3], p: V3) -> V3 {
+    let [x, y, z] = rows.map(|r| affine_row(r, p, 1.0));
+    let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
+    let on_x = ax.cmp_ge(ay) & ax.cmp_ge(az);
+    let on_y = !on_x & ay.cmp_ge(az);
+    // The face's normal is the gradient of its coordinate (a row of the map), signed
+    // by the side.
+    let grad = |r: Vec4| V3::splat(r.truncate());
+    let g = grad(rows[2])
+        .select(on_y, grad(rows[1]))
+        .select(on_x, grad(rows[0]));
+    let side = on_x.blend(x, on_y.blend(y, z));
+    let g = g.scale(L::ONE.copysign(side));
+    g.scale(L::ONE / g.dot(g).sqrt())
 }
 
 /// Row `r` of an affine map applied to `v` with homogeneous coordinate `w` (1 for a
@@ -166,6 +170,10 @@ pub fn surface_hit(ps: &PacketScene, k: usize, o: V3, d: V3, skip: L) -> (L, L) 
             (enters, near)
         }
         SurfaceShape::Planar { rows, disk, .. } => planar_hit(o, d, rows, *disk),
+        SurfaceShape::Box { rows } => {
+            let span = MediumSpan::new(&MediumKind::Box { rows: *rows }, o, d);
+            (span.enters, span.near)
+        }
     };
     (hit & not_skipped, t)
 }
@@ -178,6 +186,7 @@ pub fn surface_normal(ps: &PacketScene, k: usize, p: V3) -> V3 {
             .sub(V3::splat(*center))
             .scale(L::splat(1.0 / radius2.sqrt())),
         SurfaceShape::Planar { normal, .. } => V3::splat(*normal),
+        SurfaceShape::Box { rows } => box_normal(rows, p),
     }
 }
 

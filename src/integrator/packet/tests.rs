@@ -81,6 +81,42 @@ fn box_and_area_light() -> String {
         )
 }
 
+/// The camera in a chromatic fog filling a large sphere, a diffuse cube and a small
+/// sphere light in the fog, the sky outside: surfaces inside a medium, the camera in
+/// one, and an area light seen through it (counted in expectation).
+const FOG: &str = r#"<scene version="3.0.0">
+    <integrator type="volpath"><integer name="rr_depth" value="3"/></integrator>
+    <medium type="homogeneous" id="fog">
+        <rgb name="sigma_t" value="0.3, 0.4, 0.5"/><float name="albedo" value="0.8"/>
+        <phase type="hg"><float name="g" value="0.4"/></phase></medium>
+    <sensor type="perspective"><ref id="fog"/><film type="hdrfilm">
+        <integer name="width" value="4"/><integer name="height" value="4"/></film></sensor>
+    <shape type="sphere"><float name="radius" value="6"/><bsdf type="null"/>
+        <ref name="interior" id="fog"/></shape>
+    <shape type="cube"><transform name="to_world"><scale value="0.5"/>
+        <rotate y="1" angle="25"/><translate z="3"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.7, 0.5, 0.3"/></bsdf></shape>
+    <shape type="sphere"><point name="center" x="1.2" y="1.2" z="3.5"/>
+        <float name="radius" value="0.2"/>
+        <emitter type="area"><rgb name="radiance" value="20, 18, 15"/></emitter></shape>
+    <emitter type="constant"><rgb name="radiance" value="0.3, 0.3, 0.4"/></emitter>
+</scene>"#;
+
+/// Rays from the camera in the fog: the cube (centre and edge), the light, the fog
+/// beside them, and away from everything (out to the sky through the fog).
+fn fog_rays() -> Vec<Vec3A> {
+    [
+        (0.0, 0.0, 1.0),
+        (0.18, 0.1, 1.0),
+        (1.2, 1.2, 3.5),
+        (0.6, -0.4, 1.0),
+        (0.0, 0.3, -1.0),
+    ]
+    .into_iter()
+    .map(|(x, y, z)| Vec3A::new(x, y, z).normalize())
+    .collect()
+}
+
 fn load_xml(name: &str, xml: &str) -> Scene {
     let dir = std::env::temp_dir().join(format!("mediareg_packet_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -247,6 +283,7 @@ fn packets_equal_scalar_paths_in_expectation() {
     let two = load_xml("two_spheres", TWO_SPHERES);
     let lit = load_xml("lit_spheres", &lit_spheres());
     let boxed = load_xml("box_area_light", &box_and_area_light());
+    let fog = load_xml("fog", FOG);
     let gradients = [
         Gradient::None,
         Gradient::Albedo(0),
@@ -261,6 +298,7 @@ fn packets_equal_scalar_paths_in_expectation() {
             ("two spheres", &two, rays()),
             ("lit", &lit, lit_rays()),
             ("box", &boxed, box_rays()),
+            ("fog", &fog, fog_rays()),
         ];
         for (name, scene, rays) in scenes {
             let z = largest_z(scene, &rays, g, None, 100 + 10 * i as u64);
@@ -420,6 +458,17 @@ fn the_packet_takes_media_spheres_diffuse_shapes_and_delta_lights_only() {
     assert!(PacketScene::new(&scene).is_ok());
     let scene = load_xml("takes_box", &box_and_area_light());
     assert!(PacketScene::new(&scene).is_ok());
+    let scene = load_xml("takes_fog", FOG);
+    let ps = PacketScene::new(&scene).expect("the fog is a packet scene");
+    assert!(ps.takes_camera_ray(Vec3::ZERO, 1e4));
+    assert!(
+        !ps.takes_camera_ray(Vec3::new(0.0, 0.0, 6.5), 1e4),
+        "outside its medium"
+    );
+    assert!(
+        !ps.takes_camera_ray(Vec3::ZERO, 5.0),
+        "clipped inside its medium"
+    );
     let refused = [
         (
             "diffuse",
@@ -447,7 +496,7 @@ fn the_packet_takes_media_spheres_diffuse_shapes_and_delta_lights_only() {
         (
             "floor_cuts_sphere",
             lit_spheres().replace(r#"y="-0.5" z="4""#, r#"y="-0.45" z="4""#),
-            "reaches into",
+            "crosses a medium",
         ),
         (
             "textured",
