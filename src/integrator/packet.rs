@@ -293,7 +293,7 @@ pub fn sample_packet(
             d_beta = d_beta.select(go_on, d_beta.div(q));
         }
 
-        // ---- Where each ray ends: its sphere's far side, or the nearest shape ----
+        // ---- Where each ray ends: its medium's far side, or the nearest shape ----
         let in_medium = alive & inside.cmp_ge(L::ZERO);
         let in_space = alive & !in_medium;
         let mut t_end = inf;
