@@ -37,7 +37,7 @@ mod scene;
 mod shapes;
 
 use glam::{Vec3, Vec3A};
-use wide::{CmpEq, CmpGe, CmpGt, CmpLt};
+use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 use super::sample::PathSample;
 use crate::geometry::{RAY_EPSILON, SHADOW_EPSILON};
@@ -238,6 +238,11 @@ pub fn sample_packet(
     // meets first (`PathSample::seen_emission`).
     let mut last_p = o;
     let mut last_pdf = L::ONE;
+    // Since the last vertex that samples emitters, only delta (dielectric) vertices:
+    // an emitter met then counts in full (volpath's `specular_chain`).
+    let mut specular = L::ZERO;
+    // The product of the refractions' relative indices (for the roulette, η²).
+    let mut eta = L::ONE;
     let mut seen_emission = V3::splat(Vec3::ZERO);
     let mut valid = if !ps.hide_emitters && ps.has_environment {
         alive
@@ -284,7 +289,7 @@ pub fn sample_packet(
             };
             let w = weight.max_element();
             let w = w.cmp_gt(L::ZERO).blend(w, d_beta.abs().max_element());
-            let q = w.min(L::splat(0.95));
+            let q = (w * eta * eta).min(L::splat(0.95));
             // A NaN q fails u < q: the path ends, as the scalar one does.
             let ended = played & !u.cmp_lt(q);
             alive &= !ended;
@@ -326,6 +331,7 @@ pub fn sample_packet(
         // there was counted in expectation.
         let mut reached = L::ZERO;
         let mut counted = L::ZERO;
+        let mut leaves_to_boundary = L::ZERO;
         if in_medium.any() {
             let gathered;
             let m = match &single_medium {
@@ -351,7 +357,7 @@ pub fn sample_packet(
                         hit_surface,
                         ahead,
                         view,
-                        depth,
+                        (depth, specular),
                         (last_p, last_pdf),
                     );
                     let tr = V3::transmittance(m.sigma, t_end);
@@ -400,11 +406,14 @@ pub fn sample_packet(
             valid |= collided;
             alive &= !(collided & depth.cmp_ge(max_depth));
             let collided = collided & alive;
+            specular = collided.blend(L::ZERO, specular);
             if collided.any() {
                 let p = o.add(d.scale(flight));
                 // ---- Emitter sampling from the medium vertex ----
-                if ps.samples_emitters {
-                    let es = sample_emitters(scene, ps, p, collided, rngs);
+                // (None from inside a dielectric: no shadow ray leaves it.)
+                let nee = collided & !dielectric_of(ps, inside);
+                if ps.samples_emitters && nee.any() {
+                    let es = sample_emitters(scene, ps, p, nee, rngs);
                     if es.some.any() {
                         let phase = scatter::eval_hg(m.g, d.dot(es.d));
                         let tr = shadow_transmittance(ps, p, es.d, es.dist, inside, none, es.some);
@@ -435,14 +444,20 @@ pub fn sample_packet(
             o = o.select(passed, o.add(d.scale(t_end)));
             reached = passed & meets_surface;
             let leaves = passed & !meets_surface;
+            // (At a dielectric boundary the path stays in until the boundary's sample
+            // below says otherwise.)
+            leaves_to_boundary = leaves & dielectric_of(ps, inside);
+            let leaves = leaves & !leaves_to_boundary;
             inside = leaves.blend(none, inside);
             crossings = leaves.blend(crossings + L::ONE, crossings);
         }
 
         // ---- In empty space: into a medium, onto a surface, or out to the sky ----
-        let enters = in_space & entered.cmp_ge(L::ZERO);
+        let meets_medium = in_space & entered.cmp_ge(L::ZERO);
         let lands = in_space & meets_surface;
-        o = o.select(enters | lands, o.add(d.scale(t_end)));
+        o = o.select(meets_medium | lands, o.add(d.scale(t_end)));
+        let meets_boundary = meets_medium & dielectric_of(ps, entered);
+        let enters = meets_medium & !meets_boundary;
         // Paths on a surface: from empty space, or from a flight that reached it.
         let at_surface = alive & (lands | reached);
         if enters.any() {
@@ -464,8 +479,34 @@ pub fn sample_packet(
         crossings = enters.blend(crossings + L::ONE, crossings);
         alive &= !crossings.cmp_gt(L::splat(MAX_NULL_CROSSINGS));
         on_surface = in_medium.blend(none, on_surface);
-        on_surface = enters.blend(none, on_surface);
-        let escapes = in_space & !enters & !lands;
+        on_surface = meets_medium.blend(none, on_surface);
+        let at_boundary = alive & (meets_boundary | leaves_to_boundary);
+        if at_boundary.any() {
+            // ---- A dielectric boundary: reflect or refract (`bsdf::Dielectric`) ----
+            let shape = leaves_to_boundary.blend(inside, entered);
+            let b = boundary_sample(ps, shape, at_boundary, (o, d), rngs);
+            valid |= at_boundary;
+            let ok = at_boundary & b.pdf.cmp_gt(L::ZERO);
+            alive &= !(at_boundary & !ok);
+            beta = beta.select(ok, beta.mul(b.weight));
+            d_beta = d_beta.select(ok, d_beta.mul(b.weight));
+            eta = ok.blend(eta * b.eta, eta);
+            depth = ok.blend(depth + L::ONE, depth);
+            crossings = ok.blend(L::ZERO, crossings);
+            specular = ok.blend(mask_of(|_| true), specular);
+            last_p = last_p.select(ok, o);
+            last_pdf = ok.blend(b.pdf, last_pdf);
+            // Into the medium or out of it, by the side the new direction points to,
+            // off the boundary by the spawn offset (`geometry::offset_point`).
+            let into = b.wo.dot(b.n).cmp_lt(L::ZERO);
+            inside = ok.blend(into.blend(shape, none), inside);
+            let extent = o.abs().max_element();
+            let offset = (L::splat(ps.offset_scale) + extent) * L::splat(RAY_EPSILON);
+            let offset = into.blend(-offset, offset);
+            o = o.select(ok, o.add(b.n.scale(offset)));
+            d = d.select(ok, b.wo);
+        }
+        let escapes = in_space & !meets_medium & !lands;
         if escapes.any() {
             let seen = if ps.hide_emitters {
                 escapes & depth.cmp_gt(L::ZERO)
@@ -490,7 +531,7 @@ pub fn sample_packet(
                     hit_surface,
                     at_surface & !counted,
                     (o, n, d),
-                    depth,
+                    (depth, specular),
                     (last_p, last_pdf),
                 );
                 result = result.add(beta.mul(seen));
@@ -531,6 +572,7 @@ pub fn sample_packet(
             d_beta = d_beta.select(front, d_beta.mul(rho));
             depth = front.blend(depth + L::ONE, depth);
             crossings = at_surface.blend(L::ZERO, crossings);
+            specular = at_surface.blend(L::ZERO, specular);
             d = d.select(front, wo);
             on_surface = at_surface.blend(hit_surface, on_surface);
             alive &= !(at_surface & !front);
@@ -551,7 +593,8 @@ pub fn sample_packet(
 
 /// The emission the lanes of `mask` see on the surfaces `surface` they met at
 /// `(p, n)` along `d`, weighted as volpath's `emission_seen` weighs it: in full at
-/// depth 0 (none where emitters are hidden), else by MIS against emitter sampling from
+/// depth 0 (none where emitters are hidden) and after delta vertices only (`specular`),
+/// else by MIS against emitter sampling from
 /// the last vertex `(last_p, last_pdf)`. Per lane by the scalar code: an emitter is
 /// met rarely.
 fn surface_emission(
@@ -560,11 +603,12 @@ fn surface_emission(
     surface: L,
     mask: L,
     (p, n, d): (V3, V3, V3),
-    depth: L,
+    (depth, specular): (L, L),
     (last_p, last_pdf): (V3, L),
 ) -> V3 {
     let surface = surface.to_array();
     let (depth, last_pdf) = (depth.to_array(), last_pdf.to_array());
+    let specular = specular.move_mask();
     let mut le = [Vec3::ZERO; WIDTH];
     for k in lanes_of(mask.move_mask()) {
         let Some(ei) = ps.surfaces[surface[k] as usize].emitter else {
@@ -575,7 +619,7 @@ fn surface_emission(
         }
         let e = &scene.emitters[ei as usize];
         let (pk, nk, dk) = (p.lane_a(k), n.lane_a(k), d.lane_a(k));
-        le[k] = if depth[k] == 0.0 {
+        le[k] = if depth[k] == 0.0 || specular >> k & 1 == 1 {
             e.eval(nk, dk)
         } else {
             let from = last_p.lane_a(k);
@@ -585,6 +629,85 @@ fn surface_emission(
         };
     }
     V3::from_fn(|k| le[k])
+}
+
+/// The lanes whose medium `shape` (indices as f32) has a dielectric boundary.
+fn dielectric_of(ps: &PacketScene, shape: L) -> L {
+    let mut mask = L::ZERO;
+    if ps.dielectrics {
+        for (i, m) in ps.media_shapes.iter().enumerate() {
+            if m.dielectric.is_some() {
+                mask |= shape.cmp_eq(L::splat(i as f32));
+            }
+        }
+    }
+    mask
+}
+
+/// A dielectric boundary's sample: the outward normal, the new direction, its pdf (0:
+/// none), the weight and the relative index the path's η takes.
+struct BoundarySample {
+    n: V3,
+    wo: V3,
+    pdf: L,
+    weight: V3,
+    eta: L,
+}
+
+/// `bsdf::Dielectric::sample` in lanes at the boundaries of medium shapes `shape` the
+/// lanes of `mask` are on at `o`, light arriving along `d`: reflection with Fresnel's
+/// probability R (`bsdf::fresnel`), weight ρ_s; else refraction, weight τ_s η_ti² (the
+/// solid angle's compression, radiance transport). The draws are the scalar path's for
+/// a BSDF sample (a 1-D one choosing the lobe, a 2-D one unused here).
+fn boundary_sample(
+    ps: &PacketScene,
+    shape: L,
+    mask: L,
+    (o, d): (V3, V3),
+    rngs: &mut [Pcg32],
+) -> BoundarySample {
+    let mut n = V3::splat(Vec3::Z);
+    let (mut eta, mut refl, mut trans) = (L::ONE, V3::splat(Vec3::ONE), V3::splat(Vec3::ONE));
+    for (i, m) in ps.media_shapes.iter().enumerate() {
+        let Some(b) = m.dielectric else { continue };
+        let here = mask & shape.cmp_eq(L::splat(i as f32));
+        if here.any() {
+            n = n.select(here, medium_normal(&m.kind, o));
+            eta = here.blend(L::splat(b.eta), eta);
+            refl = refl.select(here, V3::splat(b.reflectance));
+            trans = trans.select(here, V3::splat(b.transmittance));
+        }
+    }
+    let u = draw_1d(mask, rngs);
+    let _ = draw_2d(mask, rngs);
+    // Fresnel (`bsdf::fresnel`): cos θ_i of wi = −d about the outward normal.
+    let one = L::ONE;
+    let cos_i = -d.dot(n);
+    let outside = cos_i.cmp_ge(L::ZERO);
+    let eta_it = outside.blend(eta, one / eta);
+    let eta_ti = one / eta_it;
+    let cos_t2 = one - (one - cos_i * cos_i) * eta_ti * eta_ti;
+    let ci = cos_i.abs();
+    let ct = cos_t2.max(L::ZERO).sqrt();
+    let a_s = (ci - eta_it * ct) / (ci + eta_it * ct);
+    let a_p = (ct - eta_it * ci) / (ct + eta_it * ci);
+    let r = L::splat(0.5) * (a_s * a_s + a_p * a_p);
+    let r = ci.cmp_eq(L::ZERO).blend(one, r);
+    let r = eta.cmp_eq(one).blend(L::ZERO, r);
+    let r = cos_t2.cmp_le(L::ZERO).blend(one, r);
+    let cos_t = outside.blend(-ct, ct);
+    let reflect = u.cmp_le(r);
+    // Reflection: 2 (wi·n) n − wi; refraction: −η_ti (wi − (wi·n) n) + cos θ_t n.
+    let wi = V3::splat(Vec3::ZERO).sub(d);
+    let wo_r = n.scale(L::splat(2.0) * cos_i).sub(wi);
+    let wo_t = wi.sub(n.scale(cos_i)).scale(-eta_ti).add(n.scale(cos_t));
+    BoundarySample {
+        n,
+        wo: wo_t.select(reflect, wo_r),
+        pdf: reflect.blend(r, one - r),
+        weight: trans.scale(eta_ti * eta_ti).select(reflect, refl),
+        eta: reflect.blend(one, eta_it),
+    }
 }
 
 /// The lanes whose `surface` (indices as f32) is an area emitter's.

@@ -32,11 +32,22 @@ pub enum MediumKind {
     },
 }
 
-/// A medium in a sphere or a box, in empty space.
+/// A smooth `dielectric` boundary (`bsdf::Dielectric`): int_ior / ext_ior and the
+/// specular reflectance and transmittance.
+#[derive(Clone, Copy, Debug)]
+pub struct DielectricBoundary {
+    pub eta: f32,
+    pub reflectance: Vec3,
+    pub transmittance: Vec3,
+}
+
+/// A medium in a sphere or a box, in empty space, behind a `null` boundary or a
+/// dielectric one (which seals it: no shadow ray passes).
 #[derive(Clone, Copy, Debug)]
 pub struct MediumShape {
     pub kind: MediumKind,
     pub medium: u32,
+    pub dielectric: Option<DielectricBoundary>,
     /// A sphere around it (centre, radius), for the scene's overlap checks.
     bound: (Vec3, f32),
 }
@@ -132,6 +143,8 @@ pub struct PacketScene {
     pub offset_scale: f32,
     /// The medium shape the camera is in (the one filled with the sensor's medium).
     pub camera_shape: Option<u32>,
+    /// Whether a medium's boundary is a dielectric.
+    pub dielectrics: bool,
 }
 
 impl PacketScene {
@@ -156,15 +169,26 @@ impl PacketScene {
         for (info, geometry) in scene.shapes.iter().zip(&scene.geometries) {
             let bsdf = &scene.bsdfs[info.bsdf as usize];
             match (bsdf, info.interior, info.exterior) {
-                (Bsdf::Null, Some(medium), None) if info.emitter.is_none() => {
+                (Bsdf::Null | Bsdf::Dielectric(_), Some(medium), None)
+                    if info.emitter.is_none() =>
+                {
                     let Some((kind, bound)) = medium_kind(geometry) else {
                         return Err(
                             "a null shape bounding a medium is not a sphere or a cube".into()
                         );
                     };
+                    let dielectric = match bsdf {
+                        Bsdf::Dielectric(d) => Some(DielectricBoundary {
+                            eta: d.eta,
+                            reflectance: d.specular_reflectance,
+                            transmittance: d.specular_transmittance,
+                        }),
+                        _ => None,
+                    };
                     media_shapes.push(MediumShape {
                         kind,
                         medium,
+                        dielectric,
                         bound,
                     })
                 }
@@ -235,6 +259,9 @@ impl PacketScene {
         for s in &mut surfaces {
             for (i, m) in media_shapes.iter().enumerate() {
                 if contains(m, s.bound) && s.container < 0.0 {
+                    if m.dielectric.is_some() {
+                        return Err("a surface lies inside a dielectric".into());
+                    }
                     s.container = i as f32;
                 } else if !clear_of(m, s) {
                     return Err("a diffuse surface crosses a medium's boundary".into());
@@ -297,13 +324,15 @@ impl PacketScene {
                 _ => return Err("the camera's medium does not fill one sphere or cube".into()),
             },
         };
+        if camera_shape.is_some_and(|i| media_shapes[i as usize].dielectric.is_some()) {
+            return Err("the camera is inside a dielectric".into());
+        }
         if area_emitters && scene.integrator.hide_emitters {
             // The camera ray would have to pass through the emitters' shapes.
             return Err("area emitters are hidden".into());
         }
         let grey = scene.media.iter().all(|m| m.is_grey());
         Ok(PacketScene {
-            media_shapes,
             surfaces,
             media,
             environment,
@@ -317,6 +346,8 @@ impl PacketScene {
             grey,
             offset_scale: scene.offset_scale,
             camera_shape,
+            dielectrics: media_shapes.iter().any(|m| m.dielectric.is_some()),
+            media_shapes,
         })
     }
 

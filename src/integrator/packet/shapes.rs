@@ -192,8 +192,8 @@ pub fn surface_normal(ps: &PacketScene, k: usize, p: V3) -> V3 {
 
 /// The transmittance of shadow rays from `o` along unit `d` over `dist`, the origin in
 /// medium shape `inside` (−1: empty space) and on surface `skip` (−1: none), for the
-/// lanes of `mask`: e^{−σ_t ℓ} for the length ℓ of the ray in each medium sphere, 0
-/// where a surface blocks it.
+/// lanes of `mask`: e^{−σ_t ℓ} for the length ℓ of the ray in each medium, 0 where a
+/// surface or a dielectric boundary blocks it.
 #[inline(always)]
 pub fn shadow_transmittance(
     ps: &PacketScene,
@@ -214,6 +214,11 @@ pub fn shadow_transmittance(
         let span = MediumSpan::new(&m.kind, o, d);
         let through = (span.far.min(dist) - span.near.min(dist)).max(L::ZERO);
         let from_inside = inside.cmp_eq(L::splat(i as f32));
+        if m.dielectric.is_some() {
+            // A dielectric boundary blocks shadow rays (it is no null surface).
+            blocked |= from_inside | (span.enters & span.near.cmp_lt(dist));
+            continue;
+        }
         let len = from_inside.blend(span.exit.min(dist), span.enters.blend(through, L::ZERO));
         if len.cmp_gt(L::ZERO).any() {
             tr = tr.mul(V3::transmittance(
