@@ -9,6 +9,7 @@ use crate::geometry::cuboid::Cuboid;
 use crate::geometry::shape::Geometry;
 use crate::integrator::volpath::{Gradient, PathSettings};
 use crate::medium::Phase;
+use crate::scene::ties::Ties;
 use crate::scene::{IntegratorKind, Scene};
 
 /// The largest |g| of a Henyey–Greenstein medium the packet takes: its sampling is in
@@ -163,6 +164,15 @@ impl PacketScene {
         }
         if scene.ray_log.is_some() {
             return Err("casts are being logged".into());
+        }
+        if scene
+            .tied_boundaries
+            .iter()
+            .any(|t| !matches!(t, Ties::None))
+        {
+            // A surface in a medium's boundary (a box resting on a floor): the scalar
+            // path breaks the tie for the surface (`scene::ties`); the packet would not.
+            return Err("a medium's boundary is coincident with a surface".into());
         }
         let mut media_shapes = Vec::new();
         let mut surfaces = Vec::new();

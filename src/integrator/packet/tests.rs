@@ -523,6 +523,14 @@ fn the_packet_takes_media_spheres_diffuse_shapes_and_delta_lights_only() {
             "hidden",
         ),
         (
+            "box_on_floor",
+            box_and_area_light().replace(
+                r#"<translate x="0.6" y="0" z="4.5"/>"#,
+                r#"<translate x="0.6" y="-0.05" z="4.5"/>"#,
+            ),
+            "coincident",
+        ),
+        (
             "box_near_sphere",
             box_and_area_light().replace(r#"<translate x="0.6" y="0" z="4.5"/>"#, r#"<translate x="0.1" y="0" z="4.2"/>"#),
             "within reach",
