@@ -5,11 +5,13 @@
 //! equal it in expectation, and the tests render the same scenes with both.
 //!
 //! It takes the scenes whose paths need little but lane arithmetic ([`PacketScene::new`]
-//! lists them and says why a scene is refused): media in `null` spheres and cubes, and
-//! diffuse rectangles, disks and spheres, in empty space, lit by area emitters on those
-//! surfaces, point, spot and directional emitters and a `constant` sky. A vertex is
-//! then a free flight, the tests of a few shapes, an emitter sample and a phase or BSDF
-//! sample. All of it runs in lanes but the emitter's choice and direction
+//! lists them and says why a scene is refused): media in spheres and cubes behind
+//! `null` or smooth `dielectric` boundaries, diffuse rectangles, disks, spheres and
+//! cubes in a medium or in empty space, the camera in either, lit by area emitters on
+//! those surfaces, point, spot and directional emitters and a `constant` sky. A vertex
+//! is then a free flight, the tests of a few shapes, an emitter sample and a phase,
+//! BSDF or boundary sample. All of it runs in lanes but the emitter's choice and
+//! direction where the scene has several emitters or a curved one
 //! (`emitter::selection`, `Emitter::sample_direction`) and the emission of an emitter a
 //! path meets, which are called per lane, as the scalar path calls them; the shadow
 //! rays' tests and transmittances are in lanes again. A constant sky is left to BSDF
@@ -22,8 +24,6 @@
 //! expectation is the same:
 //! * shadow rays are not rouletted by the clearance (their transmittance is exact
 //!   either way, and in lanes cheaper than the roulette's bookkeeping);
-//! * an area emitter at the end of a flight through a medium is counted when the
-//!   flight reaches it, not in expectation (volpath's module comment);
 //! * a shape's exit is its far side and its entry the near one (a sphere's roots in
 //!   the forms without cancellation, a box's slabs), and the surface a path leaves is
 //!   skipped instead of offsetting the ray (the side a path is on is its state);
