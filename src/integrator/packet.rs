@@ -464,16 +464,8 @@ pub fn sample_packet(
             // The scalar path (as Mitsuba's) starts inside a medium it enters off the
             // boundary by the spawn offset (`geometry::offset_point`); in a medium whose
             // mean free path is that short the offset shows, so the packet takes it too.
-            let mut n = V3::splat(Vec3::ZERO);
-            for (i, m) in ps.media_shapes.iter().enumerate() {
-                let here = enters & entered.cmp_eq(L::splat(i as f32));
-                if here.any() {
-                    n = n.select(here, medium_normal(&m.kind, o));
-                }
-            }
-            let extent = o.abs().max_element();
-            let offset = (L::splat(ps.offset_scale) + extent) * L::splat(RAY_EPSILON);
-            o = o.select(enters, o.sub(n.scale(offset)));
+            let n = medium_normals(ps, entered, o, enters);
+            o = o.select(enters, o.sub(n.scale(offset_magnitude(ps, o))));
         }
         inside = enters.blend(entered, inside);
         crossings = enters.blend(crossings + L::ONE, crossings);
@@ -493,15 +485,14 @@ pub fn sample_packet(
             eta = ok.blend(eta * b.eta, eta);
             depth = ok.blend(depth + L::ONE, depth);
             crossings = ok.blend(L::ZERO, crossings);
-            specular = ok.blend(mask_of(|_| true), specular);
+            specular |= ok;
             last_p = last_p.select(ok, o);
             last_pdf = ok.blend(b.pdf, last_pdf);
             // Into the medium or out of it, by the side the new direction points to,
             // off the boundary by the spawn offset (`geometry::offset_point`).
             let into = b.wo.dot(b.n).cmp_lt(L::ZERO);
             inside = ok.blend(into.blend(shape, none), inside);
-            let extent = o.abs().max_element();
-            let offset = (L::splat(ps.offset_scale) + extent) * L::splat(RAY_EPSILON);
+            let offset = offset_magnitude(ps, o);
             let offset = into.blend(-offset, offset);
             o = o.select(ok, o.add(b.n.scale(offset)));
             d = d.select(ok, b.wo);
@@ -631,6 +622,26 @@ fn surface_emission(
     V3::from_fn(|k| le[k])
 }
 
+/// The outward normals of the medium shapes `shape` (indices as f32) the lanes of
+/// `mask` are on at `p` (elsewhere 0).
+fn medium_normals(ps: &PacketScene, shape: L, p: V3, mask: L) -> V3 {
+    let mut n = V3::splat(Vec3::ZERO);
+    for (i, m) in ps.media_shapes.iter().enumerate() {
+        let here = mask & shape.cmp_eq(L::splat(i as f32));
+        if here.any() {
+            n = n.select(here, medium_normal(&m.kind, p));
+        }
+    }
+    n
+}
+
+/// How far a ray spawned at `p` starts off its surface: `geometry::offset_magnitude`
+/// in lanes, `(scale + max|p_i|) · RayEpsilon`.
+#[inline(always)]
+fn offset_magnitude(ps: &PacketScene, p: V3) -> L {
+    (L::splat(ps.offset_scale) + p.abs().max_element()) * L::splat(RAY_EPSILON)
+}
+
 /// The lanes whose medium `shape` (indices as f32) has a dielectric boundary.
 fn dielectric_of(ps: &PacketScene, shape: L) -> L {
     let mut mask = L::ZERO;
@@ -666,13 +677,12 @@ fn boundary_sample(
     (o, d): (V3, V3),
     rngs: &mut [Pcg32],
 ) -> BoundarySample {
-    let mut n = V3::splat(Vec3::Z);
+    let n = medium_normals(ps, shape, o, mask);
     let (mut eta, mut refl, mut trans) = (L::ONE, V3::splat(Vec3::ONE), V3::splat(Vec3::ONE));
     for (i, m) in ps.media_shapes.iter().enumerate() {
         let Some(b) = m.dielectric else { continue };
         let here = mask & shape.cmp_eq(L::splat(i as f32));
         if here.any() {
-            n = n.select(here, medium_normal(&m.kind, o));
             eta = here.blend(L::splat(b.eta), eta);
             refl = refl.select(here, V3::splat(b.reflectance));
             trans = trans.select(here, V3::splat(b.transmittance));
