@@ -185,11 +185,12 @@ impl Sphere {
     }
 
     /// cos of the half-angle of the cone the sphere fills as seen from `p`, or `None`
-    /// when `p` is inside (or on) the sphere.
+    /// when `p` is inside the sphere (deeper than the ray epsilon).
     #[inline]
     fn cone_cos_max(&self, p: Vec3A) -> Option<(f32, f32)> {
         let dc2 = (self.center - p).length_squared();
-        // Mitsuba shrinks the radius by RayEpsilon so points on the surface count as inside.
+        // Mitsuba shrinks the radius by RayEpsilon: points on the surface count as outside
+        // (a vertex on the light sees the hemisphere it fills).
         let r_adj = self.radius * (1.0 - super::RAY_EPSILON);
         if dc2 <= r_adj * r_adj {
             return None;

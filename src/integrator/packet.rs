@@ -10,11 +10,12 @@
 //! cubes in a medium or in empty space, the camera in either, lit by area emitters on
 //! those surfaces, point, spot and directional emitters and a `constant` sky. A vertex
 //! is then a free flight, the tests of a few shapes, an emitter sample and a phase,
-//! BSDF or boundary sample. All of it runs in lanes but the emitter's choice and
-//! direction where the scene has several emitters or a curved one
-//! (`emitter::selection`, `Emitter::sample_direction`) and the emission of an emitter a
-//! path meets, which are called per lane, as the scalar path calls them; the shadow
-//! rays' tests and transmittances are in lanes again. A constant sky is left to BSDF
+//! BSDF or boundary sample. All of it runs in lanes (a single light by its own lane
+//! sampler: point, directional, rectangle, or a sphere by its visible cone) but the
+//! emitter's choice and direction where the scene has several emitters or another
+//! shape of light (`emitter::selection`, `Emitter::sample_direction`) and the emission
+//! of an emitter a path meets, which are called per lane, as the scalar path calls
+//! them; the shadow rays' tests and transmittances are in lanes again. A constant sky is left to BSDF
 //! and phase sampling under volpath, so a path that escapes sees it with weight 1.
 //!
 //! The estimator is the scalar one's, step for step, with the random draws in the
@@ -168,6 +169,40 @@ fn sample_emitters(
             let some = cos.cmp_lt(L::ZERO) & pdf.is_finite() & pdf.cmp_gt(L::ZERO);
             let value = V3::splat(radiance).scale(some.blend(L::ONE / pdf, L::ZERO));
             return lanes(d, dist, value, some, pdf, false);
+        }
+        LaneEmitter::Sphere {
+            center,
+            radius,
+            radiance,
+            index,
+        } => {
+            let (u1, u2) = draw_2d(mask, rngs);
+            let c = scatter::sample_sphere_cone(center, radius, p, u1, u2);
+            let value = V3::splat(radiance).scale(c.ok.blend(L::ONE / c.pdf, L::ZERO));
+            let mut out = lanes(c.d, c.dist, value, c.ok, c.pdf, false);
+            let inside = mask & c.inside;
+            if inside.any() {
+                // A point inside the light (a path cannot be there but by rounding): its
+                // area, by the scalar code.
+                let (u1, u2) = (u1.to_array(), u2.to_array());
+                let e = &scene.emitters[index];
+                for k in lanes_of(inside.move_mask()) {
+                    let pk = p.lane_a(k);
+                    let u = glam::Vec2::new(u1[k], u2[k]);
+                    let Some(es) = e.sample_direction(pk, u, &scene.geometries, &scene.bsphere)
+                    else {
+                        continue;
+                    };
+                    let one = mask_of(|j| j == k);
+                    out.d = out.d.select(one, V3::splat(Vec3::from(es.d)));
+                    let dist = (es.p - pk).length() * (1.0 - SHADOW_EPSILON);
+                    out.dist = one.blend(L::splat(dist), out.dist);
+                    out.value = out.value.select(one, V3::splat(es.weight));
+                    out.pdf = one.blend(L::splat(es.pdf), out.pdf);
+                    out.some |= one & !out.value.is_zero();
+                }
+            }
+            return out;
         }
         LaneEmitter::Scalar => {}
     }

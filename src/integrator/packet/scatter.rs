@@ -1,8 +1,11 @@
 //! Directions in lanes: Henyey–Greenstein sampling and evaluation (`medium::phase`'s
-//! forms, by the distance from the peak), Lambert's cosine-weighted sampling, and the
-//! frame around a direction they are drawn in.
+//! forms, by the distance from the peak), Lambert's cosine-weighted sampling, the cone
+//! of a sphere light, and the frame around a direction they are drawn in.
 
-use wide::CmpGe;
+use glam::Vec3;
+use wide::{CmpGe, CmpGt, CmpLe};
+
+use crate::geometry::RAY_EPSILON;
 
 use super::lanes::{L, V3};
 
@@ -72,4 +75,61 @@ pub fn eval_hg(g: L, cos_theta: L) -> L {
 pub fn sample_cosine(n: V3, u1: L, u2: L) -> V3 {
     let cos_theta = (L::ONE - u1).max(L::ZERO).sqrt();
     around(n, cos_theta, u1.sqrt(), u2)
+}
+
+/// A direction toward a sphere from [`sample_sphere_cone`].
+pub struct ConeLanes {
+    /// Unit direction from the reference point.
+    pub d: V3,
+    /// Distance to where it meets the sphere.
+    pub dist: L,
+    /// Solid-angle pdf.
+    pub pdf: L,
+    /// The lanes whose point sees the sphere from outside and whose sample is valid
+    /// (the light's side faces it, the pdf is finite).
+    pub ok: L,
+    /// The lanes whose point is inside the sphere (deeper than the ray epsilon): the
+    /// scalar code samples its area there.
+    pub inside: L,
+}
+
+/// `geometry::Sphere::sample_cone` in lanes: a direction uniform in the cone of the cap
+/// of the sphere (`center`, `radius`) visible from `p`, pdf 1 / (2π (1 − cos θ_max)),
+/// and the distance to the nearer root,
+///   t = (|c|² − r²) / (|c| cos θ + √(r² − |c|² sin² θ)),   c = center − p,
+/// the product of the roots over the larger one, so that nothing cancels. Small cones
+/// (sin² θ_max below Mitsuba's 1.5° threshold) take sin² θ = sin² θ_max u1 instead of
+/// 1 − cos² θ.
+#[inline(always)]
+pub fn sample_sphere_cone(center: Vec3, radius: f32, p: V3, u1: L, u2: L) -> ConeLanes {
+    let one = L::ONE;
+    let c = V3::splat(center).sub(p);
+    let dc2 = c.dot(c);
+    let r2 = L::splat(radius * radius);
+    // Points on the surface count as outside (they see a hemisphere), as in Mitsuba.
+    let r_adj = radius * (1.0 - RAY_EPSILON);
+    let inside = dc2.cmp_le(L::splat(r_adj * r_adj));
+    let sin2_max = r2 / dc2;
+    let cos_max = (one - sin2_max).max(L::ZERO).sqrt();
+    let wide_cone = sin2_max.cmp_gt(L::splat(0.000_685_23));
+    let cos_wide = (cos_max - one) * u1 + one;
+    let sin2_small = sin2_max * u1;
+    let cos_t = wide_cone.blend(cos_wide, (one - sin2_small).max(L::ZERO).sqrt());
+    let sin2 = wide_cone.blend((one - cos_wide * cos_wide).max(L::ZERO), sin2_small);
+    let dc_len = dc2.sqrt();
+    let d = around(c.div(dc_len), cos_t, sin2.sqrt(), u2);
+    let half_chord = (r2 - dc2 * sin2).max(L::ZERO).sqrt();
+    let dist = (dc2 - r2) / (dc_len * cos_t + half_chord);
+    // The outward normal where it meets the sphere must face back along d.
+    let toward_center = c.sub(d.scale(dist));
+    let pdf = one / (L::splat(2.0 * std::f32::consts::PI) * (one - cos_max));
+    let ok =
+        !inside & dist.cmp_gt(L::ZERO) & toward_center.dot(d).cmp_gt(L::ZERO) & pdf.is_finite();
+    ConeLanes {
+        d,
+        dist,
+        pdf,
+        ok,
+        inside,
+    }
 }

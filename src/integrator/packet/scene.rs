@@ -116,6 +116,14 @@ pub enum LaneEmitter {
         area: f32,
         radiance: Vec3,
     },
+    /// An area light on a sphere seen from outside, sampled by its visible cone; the
+    /// emitter `index` samples a point inside or on it (by the scalar code).
+    Sphere {
+        center: Vec3,
+        radius: f32,
+        radiance: Vec3,
+        index: usize,
+    },
 }
 
 /// What the packet kernel needs of a scene it takes.
@@ -405,6 +413,12 @@ fn lane_emitter(scene: &Scene) -> LaneEmitter {
                 normal: Vec3::from(p.normal),
                 area: p.area,
                 radiance: *radiance,
+            },
+            Geometry::Sphere(s) if !s.flip_normals => LaneEmitter::Sphere {
+                center: Vec3::from(s.center),
+                radius: s.radius,
+                radiance: *radiance,
+                index: i,
             },
             _ => LaneEmitter::Scalar,
         },

@@ -373,9 +373,10 @@ fn the_comparison_detects_a_light_five_percent_off() {
     }
 }
 
-/// Power on the area light: 5% brighter in the packet's copy of the box scene must be
-/// caught by the rays that see it lit (not the one that sees it directly, whose
-/// noiseless value would catch it alone).
+/// Power on the area lights: 5% brighter in the packet's copy of the box scene (a
+/// rectangle) or of the fog (a sphere, sampled by its cone) must be caught by the rays
+/// that see it lit (not the one that sees it directly, whose noiseless value would
+/// catch it alone).
 #[test]
 fn the_comparison_detects_an_area_light_five_percent_off() {
     let boxed = load_xml("box_area_light_power", &box_and_area_light());
@@ -387,10 +388,25 @@ fn the_comparison_detects_an_area_light_five_percent_off() {
     let rays = box_rays();
     let lit_by_it = &rays[..rays.len() - 1];
     let z = largest_z_against(&boxed, &off, lit_by_it, Gradient::None, None, 600);
-    println!("area light 5% brighter: largest |z| {z:.2}");
+    println!("rectangle light 5% brighter: largest |z| {z:.2}");
     assert!(
         z >= Z_LIMIT,
-        "the area light 5% off went undetected: |z| = {z}"
+        "the rectangle light 5% off went undetected: |z| = {z}"
+    );
+
+    let fog = load_xml("fog_power", FOG);
+    let off = FOG.replace(
+        r#"<rgb name="radiance" value="20, 18, 15"/>"#,
+        r#"<rgb name="radiance" value="21, 18.9, 15.75"/>"#,
+    );
+    let off = load_xml("fog_off", &off);
+    let mut lit_by_it = fog_rays();
+    lit_by_it.remove(2);
+    let z = largest_z_against(&fog, &off, &lit_by_it, Gradient::None, None, 650);
+    println!("sphere light 5% brighter: largest |z| {z:.2}");
+    assert!(
+        z >= Z_LIMIT,
+        "the sphere light 5% off went undetected: |z| = {z}"
     );
 }
 
@@ -566,4 +582,69 @@ fn the_packet_takes_media_spheres_diffuse_shapes_and_delta_lights_only() {
             Err(e) => assert!(e.contains(why), "{name}: {e}"),
         }
     }
+}
+
+/// The sphere light's cone in lanes is the scalar `Sphere::sample_cone`: the same
+/// direction, distance and pdf for the same draws, from near (a wide cone) and far (a
+/// cone under the small-angle threshold), and the points inside the sphere handed to
+/// the scalar code.
+#[test]
+fn the_sphere_cone_in_lanes_is_the_scalar_one() {
+    use crate::geometry::shape::Sphere;
+    let sphere = Sphere {
+        center: Vec3A::new(0.3, -0.2, 1.0),
+        radius: 0.5,
+        flip_normals: false,
+        axes: glam::Mat3A::IDENTITY,
+    };
+    let mut rng = Pcg32::new(7, 1);
+    for far in [1.2f32, 40.0] {
+        for _ in 0..200 {
+            let u1 = L::from(std::array::from_fn::<f32, 8, _>(|_| rng.next_1d()));
+            let u2 = L::from(std::array::from_fn::<f32, 8, _>(|_| rng.next_1d()));
+            let points: [Vec3A; 8] = std::array::from_fn(|_| {
+                let dir = Vec3A::new(
+                    rng.next_1d() - 0.5,
+                    rng.next_1d() - 0.5,
+                    rng.next_1d() - 0.5,
+                );
+                sphere.center + dir.normalize_or(Vec3A::X) * far
+            });
+            let p = V3::from_fn(|k| Vec3::from(points[k]));
+            let c =
+                scatter::sample_sphere_cone(Vec3::from(sphere.center), sphere.radius, p, u1, u2);
+            let (ua, ub) = (u1.to_array(), u2.to_array());
+            for k in 0..8 {
+                let s = sphere
+                    .sample_cone(points[k], glam::Vec2::new(ua[k], ub[k]))
+                    .expect("outside");
+                assert!(c.ok.move_mask() >> k & 1 == 1 && c.inside.move_mask() >> k & 1 == 0);
+                let d = c.d.lane_a(k);
+                assert!((d - s.d).length() < 1e-4, "far {far}: {d} against {}", s.d);
+                let dist = c.dist.to_array()[k];
+                assert!(
+                    (dist - s.dist).abs() <= 1e-4 * s.dist,
+                    "{dist} against {}",
+                    s.dist
+                );
+                let pdf = c.pdf.to_array()[k];
+                assert!(
+                    (pdf - s.pdf).abs() <= 1e-5 * s.pdf,
+                    "{pdf} against {}",
+                    s.pdf
+                );
+            }
+        }
+    }
+    let on_and_in =
+        V3::from_fn(|k| Vec3::from(sphere.center) + Vec3::X * (sphere.radius * k as f32 / 8.0));
+    let c = scatter::sample_sphere_cone(
+        Vec3::from(sphere.center),
+        sphere.radius,
+        on_and_in,
+        L::splat(0.3),
+        L::splat(0.6),
+    );
+    assert_eq!(c.inside.move_mask(), 0xff);
+    assert_eq!(c.ok.move_mask(), 0);
 }
