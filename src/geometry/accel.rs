@@ -464,35 +464,6 @@ impl Accel {
                 best = Some(cuboid_hit(c, h));
             }
         }
-        self.closest_in_bvh(shapes, o, d, t_best, keep, filtered)
-            .or(best)
-    }
-
-    /// The closest hit among the BVH's primitives alone (not the analytic shapes and
-    /// cubes tested beside it): where [`Accel::bvh_holds_only`] says they are the
-    /// shapes a caller asks about (the packet kernel's mesh media).
-    #[inline(always)]
-    pub fn intersect_bvh(&self, shapes: &[Geometry], o: Vec3A, d: Vec3A, tmax: f32) -> Option<Hit> {
-        self.closest_in_bvh(shapes, o, d, tmax, |_| true, false)
-    }
-
-    /// Whether the BVH holds triangles only, each of a shape `pred` accepts.
-    pub fn bvh_holds_only(&self, pred: impl Fn(u32) -> bool) -> bool {
-        !self.mixed && self.prims.iter().all(|p| pred(p.shape))
-    }
-
-    #[inline(always)]
-    fn closest_in_bvh(
-        &self,
-        shapes: &[Geometry],
-        o: Vec3A,
-        d: Vec3A,
-        t_best: f32,
-        keep: impl Fn(u32) -> bool,
-        filtered: bool,
-    ) -> Option<Hit> {
-        let mut best = None;
-        let mut t_best = t_best;
         if self.prims.is_empty() {
             return best;
         }
@@ -514,11 +485,11 @@ impl Accel {
             } else {
                 e.intersect(o, d, t_best)
             };
-            return found;
+            return found.or(best);
         }
         if let Some(l) = &self.lanes {
             let found = l.closest(o, d, t_best, |i| keep(self.prims[i].shape));
-            return found.map(|h| self.hit(h.index, h.t, h.u, h.v));
+            return found.map(|h| self.hit(h.index, h.t, h.u, h.v)).or(best);
         }
         let (ray, back) = traversal_ray(o, d, t_best);
         let mut best_prim = None;
@@ -534,7 +505,10 @@ impl Accel {
                 None => f32::INFINITY,
             }
         });
-        best_prim.map(|(id, t, u, v)| self.hit(id, t, u, v))
+        match best_prim {
+            Some((id, t, u, v)) => Some(self.hit(id, t, u, v)),
+            None => best,
+        }
     }
 
     #[inline(always)]
