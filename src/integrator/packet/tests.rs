@@ -4,7 +4,6 @@
 
 use super::*;
 use crate::integrator::volpath::{self, Gradient, PathSettings};
-use crate::load::BuildOverrides;
 
 /// Two media spheres under a sky: a grey forward-scattering one and a chromatic
 /// backward-scattering one (σ_t of its channels within a factor 4: every channel's
@@ -118,12 +117,7 @@ fn fog_rays() -> Vec<Vec3A> {
 }
 
 fn load_xml(name: &str, xml: &str) -> Scene {
-    let dir = std::env::temp_dir().join(format!("mediareg_packet_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(format!("{name}.xml"));
-    std::fs::write(&path, xml).unwrap();
-    crate::load_scene(&path, &Default::default(), &BuildOverrides::default())
-        .unwrap_or_else(|e| panic!("{name}: {e}"))
+    crate::integrator::scene_from_xml("packet", name, xml)
 }
 
 /// Rays from the origin: into the grey sphere (centre and rim), the chromatic one,

@@ -2,7 +2,6 @@
 //! once, emitters seen through media, convex and sealed media.
 
 use super::*;
-use crate::load::BuildOverrides;
 use crate::sampling::warp::square_to_uniform_sphere;
 
 /// Two null cubes around media (one chromatic and turned) and a blocking cube, in
@@ -77,12 +76,7 @@ fn scene(test: &str, cubes: bool) -> Scene {
 /// Loads a scene file's text, written to a file named after `name` (each test its
 /// own name: tests run in parallel).
 fn load_xml(name: &str, xml: &str) -> Scene {
-    let dir = std::env::temp_dir().join(format!("mediareg_volpath_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(format!("{name}.xml"));
-    std::fs::write(&path, xml).unwrap();
-    crate::load_scene(&path, &Default::default(), &BuildOverrides::default())
-        .unwrap_or_else(|e| panic!("{name}: {e}"))
+    crate::integrator::scene_from_xml("volpath", name, xml)
 }
 
 /// Where the ray o + t d is inside the box (local [-1, 1]³ mapped by `to_local`
