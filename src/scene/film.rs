@@ -29,20 +29,23 @@ impl Rfilter {
 
     #[inline]
     pub fn eval(&self, x: f32) -> f32 {
-        match self {
-            Rfilter::Box => {
-                if (-0.5..0.5).contains(&x) {
-                    1.0
-                } else {
-                    0.0
-                }
-            }
-            Rfilter::Tent { radius } => (1.0 - (x / radius).abs()).max(0.0),
+        self.evaluator().eval(x)
+    }
+
+    /// The filter with its constants worked out once, for the many weights of a splat.
+    #[inline]
+    fn evaluator(&self) -> FilterEval {
+        match *self {
             Rfilter::Gaussian { stddev } => {
                 let alpha = -1.0 / (2.0 * stddev * stddev);
                 let r = 4.0 * stddev;
-                ((alpha * x * x).exp() - (alpha * r * r).exp()).max(0.0)
+                FilterEval::Gaussian {
+                    alpha,
+                    floor: (alpha * r * r).exp(),
+                }
             }
+            Rfilter::Tent { radius } => FilterEval::Tent { radius },
+            Rfilter::Box => FilterEval::Box,
         }
     }
 
@@ -51,6 +54,32 @@ impl Rfilter {
         match self {
             Rfilter::Box => 0,
             _ => (self.radius() - 0.5).ceil().max(0.0) as usize,
+        }
+    }
+}
+
+/// [`Rfilter`] ready to evaluate: a Gaussian's constants computed (Mitsuba's
+/// `gaussian`: e^{−x²/(2σ²)} − e^{−r²/(2σ²)}, clamped at 0, radius r = 4σ).
+#[derive(Clone, Copy)]
+enum FilterEval {
+    Box,
+    Tent { radius: f32 },
+    Gaussian { alpha: f32, floor: f32 },
+}
+
+impl FilterEval {
+    #[inline]
+    fn eval(&self, x: f32) -> f32 {
+        match *self {
+            FilterEval::Gaussian { alpha, floor } => ((alpha * x * x).exp() - floor).max(0.0),
+            FilterEval::Box => {
+                if (-0.5..0.5).contains(&x) {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            FilterEval::Tent { radius } => (1.0 - (x / radius).abs()).max(0.0),
         }
     }
 }
@@ -159,6 +188,7 @@ impl ImageBlock {
             return;
         }
         let r = filter.radius();
+        let filter = filter.evaluator();
         // Pixel centers at i + 0.5.
         let cx = px - 0.5;
         let cy = py - 0.5;
