@@ -15,8 +15,9 @@
 //! emitter's choice and direction where the scene has several emitters or another
 //! shape of light (`emitter::selection`, `Emitter::sample_direction`) and the emission
 //! of an emitter a path meets, which are called per lane, as the scalar path calls
-//! them; the shadow rays' tests and transmittances are in lanes again. A constant sky is left to BSDF
-//! and phase sampling under volpath, so a path that escapes sees it with weight 1.
+//! them; the shadow rays' tests and transmittances are in lanes again. A constant sky
+//! is left to BSDF and phase sampling under volpath, so a path that escapes sees it
+//! with weight 1.
 //!
 //! The estimator is the scalar one's, step for step, with the random draws in the
 //! scalar path's order (the hero channel; per vertex the roulette, the distance, the

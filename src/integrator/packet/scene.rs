@@ -116,8 +116,8 @@ pub enum LaneEmitter {
         area: f32,
         radiance: Vec3,
     },
-    /// An area light on a sphere seen from outside, sampled by its visible cone; the
-    /// emitter `index` samples a point inside or on it (by the scalar code).
+    /// An area light on a sphere seen from outside (or from its surface), sampled by
+    /// its visible cone; from inside it, emitter `index` by the scalar code.
     Sphere {
         center: Vec3,
         radius: f32,

@@ -630,12 +630,12 @@ fn the_sphere_cone_in_lanes_is_the_scalar_one() {
             }
         }
     }
-    let on_and_in =
+    let inside_points =
         V3::from_fn(|k| Vec3::from(sphere.center) + Vec3::X * (sphere.radius * k as f32 / 8.0));
     let c = scatter::sample_sphere_cone(
         Vec3::from(sphere.center),
         sphere.radius,
-        on_and_in,
+        inside_points,
         L::splat(0.3),
         L::splat(0.6),
     );
