@@ -391,6 +391,10 @@ impl TriangleMesh {
                 None => vertex_normals(&positions, &raw.triangles),
             })
         };
+        // A flat mesh (a wall, a box: each triangle's vertex normals its own face
+        // normal) keeps none: its shading normal is the geometric one, which a hit
+        // then reads without three more loads and a square root.
+        let normals = normals.filter(|ns| !is_flat(&positions, &raw.triangles, ns));
         let mut area_cdf = Vec::with_capacity(raw.triangles.len());
         let mut total = 0.0f64;
         for t in &raw.triangles {
@@ -488,6 +492,20 @@ impl TriangleMesh {
     }
 }
 
+/// How far (per component) a vertex normal may lie from its triangle's face normal for
+/// the triangle to count as flat: rounding, and no visible angle (about 2e-5 rad).
+const FLAT_TOLERANCE: f32 = 1e-5;
+
+/// Whether every triangle's vertex normals are its face normal (to rounding).
+fn is_flat(positions: &[Vec3A], triangles: &[[u32; 3]], normals: &[Vec3A]) -> bool {
+    triangles.iter().all(|t| {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        t.iter()
+            .all(|&i| (normals[i as usize] - n).abs().max_element() <= FLAT_TOLERANCE)
+    })
+}
+
 /// Angle-weighted vertex normals ("Computing Vertex Normals from Polygonal Facets",
 /// Thürmer & Wüthrich 1998), as Mitsuba 3 computes them for meshes without normals.
 fn vertex_normals(positions: &[Vec3A], triangles: &[[u32; 3]]) -> Vec<Vec3A> {
@@ -514,6 +532,43 @@ fn vertex_normals(positions: &[Vec3A], triangles: &[[u32; 3]]) -> Vec<Vec3A> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A flat mesh keeps no vertex normals (its shading normal is the geometric one,
+    /// to the bit); a bent one keeps them, however slight the bend beyond rounding.
+    #[test]
+    fn flat_meshes_keep_no_vertex_normals() {
+        let mesh = |z: f32| {
+            let raw = RawMesh {
+                positions: vec![
+                    Vec3A::new(0.0, 0.0, 0.0),
+                    Vec3A::new(1.0, 0.0, 0.0),
+                    Vec3A::new(1.0, 1.0, z),
+                    Vec3A::new(0.0, 1.0, 0.0),
+                ],
+                normals: None,
+                triangles: vec![[0, 1, 2], [0, 2, 3]],
+                uvs: None,
+                warnings: Vec::new(),
+            };
+            TriangleMesh::new(raw, &Mat4::IDENTITY, false, false, Path::new("quad")).unwrap()
+        };
+        let flat = mesh(0.0);
+        assert!(flat.normals.is_none());
+        let (_, n, sh_n) = flat.surface(1, 0.2, 0.3);
+        assert_eq!(n, sh_n);
+        assert!(mesh(1e-3).normals.is_some());
+        // A mirroring transform keeps the check on the reversed winding.
+        let raw = RawMesh {
+            positions: vec![Vec3A::ZERO, Vec3A::X, Vec3A::Y],
+            normals: Some(vec![Vec3A::Z; 3]),
+            triangles: vec![[0, 1, 2]],
+            uvs: None,
+            warnings: Vec::new(),
+        };
+        let mirror = Mat4::from_scale(glam::Vec3::new(-1.0, 1.0, 1.0));
+        let m = TriangleMesh::new(raw, &mirror, false, false, Path::new("tri")).unwrap();
+        assert!(m.normals.is_none(), "{:?}", m.normals);
+    }
 
     /// PLY texture coordinates are read under Mitsuba's names (here `s`, `t`), unflipped.
     #[test]
