@@ -80,6 +80,18 @@ struct EmitterLanes {
 }
 
 impl EmitterLanes {
+    /// These samples in the lanes of `mask`, `other`'s elsewhere.
+    fn or(self, other: EmitterLanes, mask: L) -> EmitterLanes {
+        EmitterLanes {
+            d: other.d.select(mask, self.d),
+            dist: mask.blend(self.dist, other.dist),
+            value: other.value.select(mask, self.value),
+            some: mask.blend(self.some, other.some),
+            pdf: mask.blend(self.pdf, other.pdf),
+            delta: mask.blend(self.delta, other.delta),
+        }
+    }
+
     /// The MIS weight against BSDF or phase sampling of pdf `other` (1 for a delta
     /// light).
     #[inline(always)]
@@ -177,45 +189,36 @@ fn sample_emitters(
             center,
             radius,
             radiance,
-            index,
         } => {
             let (u1, u2) = draw_2d(mask, rngs);
             let c = scatter::sample_sphere_cone(center, radius, p, u1, u2);
             let value = V3::splat(radiance).scale(c.ok.blend(L::ONE / c.pdf, L::ZERO));
-            let mut out = lanes(c.d, c.dist, value, c.ok, c.pdf, false);
+            let out = lanes(c.d, c.dist, value, c.ok, c.pdf, false);
             let inside = mask & c.inside;
             if inside.any() {
                 // A point inside the light (a path cannot be there but by rounding): its
-                // area, by the scalar code.
-                let (u1, u2) = (u1.to_array(), u2.to_array());
-                let e = &scene.emitters[index];
-                for k in lanes_of(inside.move_mask()) {
-                    let pk = p.lane_a(k);
-                    let u = glam::Vec2::new(u1[k], u2[k]);
-                    let Some(es) = e.sample_direction(pk, u, &scene.geometries, &scene.bsphere)
-                    else {
-                        continue;
-                    };
-                    let one = mask_of(|j| j == k);
-                    out.d = out.d.select(one, V3::splat(Vec3::from(es.d)));
-                    let dist = (es.p - pk).length() * (1.0 - SHADOW_EPSILON);
-                    out.dist = one.blend(L::splat(dist), out.dist);
-                    out.value = out.value.select(one, V3::splat(es.weight));
-                    out.pdf = one.blend(L::splat(es.pdf), out.pdf);
-                    out.some |= one & !out.value.is_zero();
-                }
+                // area, by the scalar code, from the same draws.
+                return per_lane(scene, p, inside, (u1, u2)).or(out, inside);
             }
             return out;
         }
         LaneEmitter::Scalar => {}
     }
+    let u = draw_2d(mask, rngs);
+    per_lane(scene, p, mask, u)
+}
+
+/// Emitter samples for the lanes of `mask` by the scalar code, lane by lane, from the
+/// draws `u` (`emitter::selection`, then `Emitter::sample_direction`).
+fn per_lane(scene: &Scene, p: V3, mask: L, (u1, u2): (L, L)) -> EmitterLanes {
+    let (u1, u2) = (u1.to_array(), u2.to_array());
     let mut d = [Vec3::Z; WIDTH];
     let mut dist = [0f32; WIDTH];
     let mut value = [Vec3::ZERO; WIDTH];
     let mut pdf = [0f32; WIDTH];
     let mut delta = [false; WIDTH];
     for k in lanes_of(mask.move_mask()) {
-        let u = rngs[k].next_2d();
+        let u = glam::Vec2::new(u1[k], u2[k]);
         let pk = p.lane_a(k);
         let Some((idx, u, p_select)) = scene.emitter_selection.select(pk, u) else {
             continue;

@@ -117,12 +117,11 @@ pub enum LaneEmitter {
         radiance: Vec3,
     },
     /// An area light on a sphere seen from outside (or from its surface), sampled by
-    /// its visible cone; from inside it, emitter `index` by the scalar code.
+    /// its visible cone; from inside it, by the scalar code.
     Sphere {
         center: Vec3,
         radius: f32,
         radiance: Vec3,
-        index: usize,
     },
 }
 
@@ -418,7 +417,6 @@ fn lane_emitter(scene: &Scene) -> LaneEmitter {
                 center: Vec3::from(s.center),
                 radius: s.radius,
                 radiance: *radiance,
-                index: i,
             },
             _ => LaneEmitter::Scalar,
         },
