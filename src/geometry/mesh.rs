@@ -18,6 +18,9 @@ pub struct TriangleMesh {
     /// Per-vertex texture coordinates, when the file has them.
     pub uvs: Option<Vec<Vec2>>,
     pub flip_normals: bool,
+    /// Each triangle's unit geometric normal (p1 − p0) × (p2 − p0), 0 where it has no
+    /// area: a hit and a point sampled on an emitter read it instead of working it out.
+    face_normals: Vec<Vec3A>,
     /// Cumulative triangle areas, for sampling a point uniformly by area.
     area_cdf: Vec<f32>,
     pub total_area: f32,
@@ -402,12 +405,21 @@ impl TriangleMesh {
             total += 0.5 * (b - a).cross(c - a).length() as f64;
             area_cdf.push(total as f32);
         }
+        let face_normals = raw
+            .triangles
+            .iter()
+            .map(|t| {
+                let [p0, p1, p2] = t.map(|i| positions[i as usize]);
+                (p1 - p0).cross(p2 - p0).normalize_or_zero()
+            })
+            .collect();
         Ok(TriangleMesh {
             positions,
             normals,
             triangles: raw.triangles,
             uvs: raw.uvs,
             flip_normals,
+            face_normals,
             area_cdf,
             total_area: total as f32,
             cube_to_world: None,
@@ -436,7 +448,7 @@ impl TriangleMesh {
         let [p0, p1, p2] = idx.map(|i| self.positions[i as usize]);
         let w = 1.0 - u - v;
         let p = p0 * w + p1 * u + p2 * v;
-        let mut n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+        let mut n = self.face_normals[tri as usize];
         let mut sh_n = match &self.normals {
             Some(ns) => {
                 let s = ns[idx[0] as usize] * w + ns[idx[1] as usize] * u + ns[idx[2] as usize] * v;
