@@ -6,7 +6,7 @@
 //! radius; the developed pixel is Σ w L / Σ w. The box filter takes Mitsuba's fast path:
 //! the sample goes to pixel ⌊pos⌋ with weight 1.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Rfilter {
@@ -236,17 +236,16 @@ impl ImageBlock {
                 }
             }
         }
+        // (Σ wL, Σ w) of a pixel in one vector: the same products and sums as channel
+        // by channel.
+        let l1 = Vec4::new(l.x, l.y, l.z, 1.0);
         for (y, &wy) in (y0..=y1 as usize).zip(&wy[..rows]) {
             if wy == 0.0 {
                 continue;
             }
-            for (x, &wx) in (x0..=x1 as usize).zip(&wx[..columns]) {
-                let w = wy * wx;
-                let p = &mut self.data[y * fw + x];
-                p[0] += w * l.x;
-                p[1] += w * l.y;
-                p[2] += w * l.z;
-                p[3] += w;
+            let row = &mut self.data[y * fw + x0..y * fw + x0 + columns];
+            for (p, &wx) in row.iter_mut().zip(&wx[..columns]) {
+                *p = (Vec4::from_array(*p) + l1 * (wy * wx)).to_array();
             }
         }
     }
