@@ -12,7 +12,7 @@ use crate::error::{Loc, Result, SceneError};
 #[derive(Clone, Debug)]
 pub struct TriangleMesh {
     pub positions: Vec<Vec3A>,
-    /// Per-vertex shading normals; `None` with `face_normals`.
+    /// Per-vertex shading normals; `None` with `face_normals` and for a flat mesh.
     pub normals: Option<Vec<Vec3A>>,
     pub triangles: Vec<[u32; 3]>,
     /// Per-vertex texture coordinates, when the file has them.
@@ -20,7 +20,7 @@ pub struct TriangleMesh {
     pub flip_normals: bool,
     /// Each triangle's unit geometric normal (p1 − p0) × (p2 − p0), 0 where it has no
     /// area: a hit and a point sampled on an emitter read it instead of working it out.
-    face_normals: Vec<Vec3A>,
+    geometric_normals: Vec<Vec3A>,
     /// Cumulative triangle areas, for sampling a point uniformly by area.
     area_cdf: Vec<f32>,
     pub total_area: f32,
@@ -394,32 +394,29 @@ impl TriangleMesh {
                 None => vertex_normals(&positions, &raw.triangles),
             })
         };
-        // A flat mesh (a wall, a box: each triangle's vertex normals its own face
-        // normal) keeps none: its shading normal is the geometric one, which a hit
-        // then reads without three more loads and a square root.
-        let normals = normals.filter(|ns| !is_flat(&positions, &raw.triangles, ns));
+        // Each triangle's edge cross product gives its area (for sampling) and its
+        // geometric normal.
         let mut area_cdf = Vec::with_capacity(raw.triangles.len());
+        let mut geometric_normals = Vec::with_capacity(raw.triangles.len());
         let mut total = 0.0f64;
         for t in &raw.triangles {
             let [a, b, c] = t.map(|i| positions[i as usize]);
-            total += 0.5 * (b - a).cross(c - a).length() as f64;
+            let cross = (b - a).cross(c - a);
+            total += 0.5 * cross.length() as f64;
             area_cdf.push(total as f32);
+            geometric_normals.push(cross.normalize_or_zero());
         }
-        let face_normals = raw
-            .triangles
-            .iter()
-            .map(|t| {
-                let [p0, p1, p2] = t.map(|i| positions[i as usize]);
-                (p1 - p0).cross(p2 - p0).normalize_or_zero()
-            })
-            .collect();
+        // A flat mesh (a wall, a box: each triangle's vertex normals its own face
+        // normal) keeps none: its shading normal is the geometric one, which a hit
+        // then reads without three more loads and a square root.
+        let normals = normals.filter(|ns| !is_flat(&raw.triangles, &geometric_normals, ns));
         Ok(TriangleMesh {
             positions,
             normals,
             triangles: raw.triangles,
             uvs: raw.uvs,
             flip_normals,
-            face_normals,
+            geometric_normals,
             area_cdf,
             total_area: total as f32,
             cube_to_world: None,
@@ -448,7 +445,7 @@ impl TriangleMesh {
         let [p0, p1, p2] = idx.map(|i| self.positions[i as usize]);
         let w = 1.0 - u - v;
         let p = p0 * w + p1 * u + p2 * v;
-        let mut n = self.face_normals[tri as usize];
+        let mut n = self.geometric_normals[tri as usize];
         let mut sh_n = match &self.normals {
             Some(ns) => {
                 let s = ns[idx[0] as usize] * w + ns[idx[1] as usize] * u + ns[idx[2] as usize] * v;
@@ -508,11 +505,9 @@ impl TriangleMesh {
 /// the triangle to count as flat: rounding, and no visible angle (about 2e-5 rad).
 const FLAT_TOLERANCE: f32 = 1e-5;
 
-/// Whether every triangle's vertex normals are its face normal (to rounding).
-fn is_flat(positions: &[Vec3A], triangles: &[[u32; 3]], normals: &[Vec3A]) -> bool {
-    triangles.iter().all(|t| {
-        let [a, b, c] = t.map(|i| positions[i as usize]);
-        let n = (b - a).cross(c - a).normalize_or_zero();
+/// Whether every triangle's vertex normals are its geometric normal (to rounding).
+fn is_flat(triangles: &[[u32; 3]], geometric: &[Vec3A], normals: &[Vec3A]) -> bool {
+    triangles.iter().zip(geometric).all(|(t, &n)| {
         t.iter()
             .all(|&i| (normals[i as usize] - n).abs().max_element() <= FLAT_TOLERANCE)
     })

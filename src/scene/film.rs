@@ -207,12 +207,13 @@ impl ImageBlock {
         let rows = y1 as usize + 1 - y0;
         let mut wx = [0.0f32; MAX_COLUMNS];
         let mut wy = [0.0f32; MAX_COLUMNS];
+        let l1 = Vec4::new(l.x, l.y, l.z, 1.0);
         if columns > MAX_COLUMNS || rows > MAX_COLUMNS {
             return self.put_weights_unbounded(
                 filter,
                 (x0, x1 as usize, cx),
                 (y0, y1 as usize, cy),
-                l,
+                l1,
             );
         }
         match filter {
@@ -236,16 +237,13 @@ impl ImageBlock {
                 }
             }
         }
-        // (Σ wL, Σ w) of a pixel in one vector: the same products and sums as channel
-        // by channel.
-        let l1 = Vec4::new(l.x, l.y, l.z, 1.0);
         for (y, &wy) in (y0..=y1 as usize).zip(&wy[..rows]) {
             if wy == 0.0 {
                 continue;
             }
             let row = &mut self.data[y * fw + x0..y * fw + x0 + columns];
             for (p, &wx) in row.iter_mut().zip(&wx[..columns]) {
-                *p = (Vec4::from_array(*p) + l1 * (wy * wx)).to_array();
+                add_weighted(p, l1, wy * wx);
             }
         }
     }
@@ -258,7 +256,7 @@ impl ImageBlock {
         filter: FilterEval,
         (x0, x1, cx): (usize, usize, f32),
         (y0, y1, cy): (usize, usize, f32),
-        l: Vec3,
+        l1: Vec4,
     ) {
         let fw = self.full_width();
         for y in y0..=y1 {
@@ -267,12 +265,11 @@ impl ImageBlock {
                 continue;
             }
             for x in x0..=x1 {
-                let w = wy * filter.eval(x as f32 - cx);
-                let p = &mut self.data[y * fw + x];
-                p[0] += w * l.x;
-                p[1] += w * l.y;
-                p[2] += w * l.z;
-                p[3] += w;
+                add_weighted(
+                    &mut self.data[y * fw + x],
+                    l1,
+                    wy * filter.eval(x as f32 - cx),
+                );
             }
         }
     }
@@ -313,6 +310,13 @@ impl ImageBlock {
         }
         out
     }
+}
+
+/// Adds `w · (L, 1)` to a pixel's (Σ wL, Σ w), as one 4-wide vector: the same products
+/// and sums as channel by channel.
+#[inline(always)]
+fn add_weighted(pixel: &mut [f32; 4], l1: Vec4, w: f32) {
+    *pixel = (Vec4::from_array(*pixel) + l1 * w).to_array();
 }
 
 #[cfg(test)]
