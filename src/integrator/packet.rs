@@ -34,6 +34,8 @@
 //!   polar map instead of the concentric one.
 
 mod boundary;
+mod emitters;
+mod heterogeneous;
 mod lanes;
 mod scatter;
 mod scene;
@@ -43,13 +45,13 @@ use glam::{Vec3, Vec3A};
 use wide::{CmpEq, CmpGe, CmpGt, CmpLt};
 
 use super::sample::PathSample;
-use crate::geometry::{RAY_EPSILON, SHADOW_EPSILON};
+use crate::geometry::RAY_EPSILON;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
 use boundary::boundary_sample;
+use emitters::sample_emitters;
 pub use lanes::WIDTH;
 use lanes::{draw_1d, draw_2d, lanes_of, mask_of, L, V3};
-use scene::LaneEmitter;
 pub use scene::{PacketScene, PacketSettings, MAX_ABS_G};
 use shapes::{medium_normal, shadow_transmittance, surface_hit, surface_normal, MediumSpan};
 
@@ -65,182 +67,6 @@ struct MediumLanes {
     a: V3,
     b: V3,
     g: L,
-}
-
-/// Emitter samples from points of the lanes, before the shadow ray: direction,
-/// distance, `L_e G / (pdf p_select)` (0 where nothing was sampled), the solid-angle
-/// pdf with the selection's, and whether it is a delta light's (no MIS weight).
-struct EmitterLanes {
-    d: V3,
-    dist: L,
-    value: V3,
-    some: L,
-    pdf: L,
-    delta: L,
-}
-
-impl EmitterLanes {
-    /// These samples in the lanes of `mask`, `other`'s elsewhere.
-    fn or(self, other: EmitterLanes, mask: L) -> EmitterLanes {
-        EmitterLanes {
-            d: other.d.select(mask, self.d),
-            dist: mask.blend(self.dist, other.dist),
-            value: other.value.select(mask, self.value),
-            some: mask.blend(self.some, other.some),
-            pdf: mask.blend(self.pdf, other.pdf),
-            delta: mask.blend(self.delta, other.delta),
-        }
-    }
-
-    /// The MIS weight against BSDF or phase sampling of pdf `other` (1 for a delta
-    /// light).
-    #[inline(always)]
-    fn weight(&self, other: L) -> L {
-        self.delta.blend(L::ONE, mis_weight(self.pdf, other))
-    }
-}
-
-/// The power heuristic `a² / (a² + b²)`, 0 where not finite (`sampling::mis_weight`).
-#[inline(always)]
-fn mis_weight(a: L, b: L) -> L {
-    let (a2, b2) = (a * a, b * b);
-    let w = a2 / (a2 + b2);
-    w.is_finite().blend(w, L::ZERO)
-}
-
-/// An emitter sample per lane of `mask` from its point `p`, one `next_2d` each: in
-/// lanes where the scene has one emitter to pick of a kind the packet samples
-/// ([`LaneEmitter`]), else by the scalar code per lane (`volpath`'s
-/// `medium_emitter_sample` and `sample_light_at_surface` up to the shadow ray).
-fn sample_emitters(
-    scene: &Scene,
-    ps: &PacketScene,
-    p: V3,
-    mask: L,
-    rngs: &mut [Pcg32],
-) -> EmitterLanes {
-    let shorten = L::splat(1.0 - SHADOW_EPSILON);
-    let lanes = |d: V3, dist: L, value: V3, some: L, pdf: L, delta: bool| EmitterLanes {
-        d,
-        dist: dist * shorten,
-        some: mask & some & !value.is_zero(),
-        value,
-        pdf,
-        delta: if delta { mask } else { L::ZERO },
-    };
-    match ps.lane_emitter {
-        LaneEmitter::Point {
-            position,
-            intensity,
-        } => {
-            let _ = draw_2d(mask, rngs);
-            let v = V3::splat(position).sub(p);
-            let dist2 = v.dot(v);
-            let dist = dist2.sqrt();
-            let value = V3::splat(intensity).div(dist2);
-            let some = dist2.cmp_gt(L::ZERO);
-            return lanes(v.div(dist), dist, value, some, L::ONE, true);
-        }
-        LaneEmitter::Directional {
-            toward,
-            irradiance,
-            bsphere: (center, radius),
-        } => {
-            let _ = draw_2d(mask, rngs);
-            let c = p.sub(V3::splat(center));
-            let r = L::splat(radius).max(c.dot(c).sqrt());
-            let dist = L::splat(2.0) * r;
-            return lanes(
-                V3::splat(toward),
-                dist,
-                V3::splat(irradiance),
-                mask,
-                L::ONE,
-                true,
-            );
-        }
-        LaneEmitter::Rectangle {
-            rows,
-            normal,
-            area,
-            radiance,
-        } => {
-            // A point uniform on the rectangle; pdf_ω = pdf_A r² / |cos θ_light|, from
-            // the front side only.
-            let (u1, u2) = draw_2d(mask, rngs);
-            let (x, y) = (L::splat(2.0) * u1 - L::ONE, L::splat(2.0) * u2 - L::ONE);
-            let [px, py, pz] = rows.map(|r| L::splat(r.x) * x + L::splat(r.y) * y + L::splat(r.w));
-            let v = V3 {
-                x: px,
-                y: py,
-                z: pz,
-            }
-            .sub(p);
-            let dist2 = v.dot(v);
-            let dist = dist2.sqrt();
-            let d = v.div(dist);
-            let cos = V3::splat(normal).dot(d);
-            let pdf = dist2 / (L::splat(area) * -cos);
-            let some = cos.cmp_lt(L::ZERO) & pdf.is_finite() & pdf.cmp_gt(L::ZERO);
-            let value = V3::splat(radiance).scale(some.blend(L::ONE / pdf, L::ZERO));
-            return lanes(d, dist, value, some, pdf, false);
-        }
-        LaneEmitter::Sphere {
-            center,
-            radius,
-            radiance,
-        } => {
-            let (u1, u2) = draw_2d(mask, rngs);
-            let c = scatter::sample_sphere_cone(center, radius, p, u1, u2);
-            let value = V3::splat(radiance).scale(c.ok.blend(L::ONE / c.pdf, L::ZERO));
-            let out = lanes(c.d, c.dist, value, c.ok, c.pdf, false);
-            let inside = mask & c.inside;
-            if inside.any() {
-                // A point inside the light (a path cannot be there but by rounding): its
-                // area, by the scalar code, from the same draws.
-                return per_lane(scene, p, inside, (u1, u2)).or(out, inside);
-            }
-            return out;
-        }
-        LaneEmitter::Scalar => {}
-    }
-    let u = draw_2d(mask, rngs);
-    per_lane(scene, p, mask, u)
-}
-
-/// Emitter samples for the lanes of `mask` by the scalar code, lane by lane, from the
-/// draws `u` (`emitter::selection`, then `Emitter::sample_direction`).
-fn per_lane(scene: &Scene, p: V3, mask: L, (u1, u2): (L, L)) -> EmitterLanes {
-    let (u1, u2) = (u1.to_array(), u2.to_array());
-    let mut d = [Vec3::Z; WIDTH];
-    let mut dist = [0f32; WIDTH];
-    let mut value = [Vec3::ZERO; WIDTH];
-    let mut pdf = [0f32; WIDTH];
-    let mut delta = [false; WIDTH];
-    for k in lanes_of(mask.move_mask()) {
-        let u = glam::Vec2::new(u1[k], u2[k]);
-        let pk = p.lane_a(k);
-        let Some((idx, u, p_select)) = scene.emitter_selection.select(pk, u) else {
-            continue;
-        };
-        let e = &scene.emitters[idx];
-        if let Some(es) = e.sample_direction(pk, u, &scene.geometries, &scene.bsphere) {
-            d[k] = Vec3::from(es.d);
-            dist[k] = (es.p - pk).length() * (1.0 - SHADOW_EPSILON);
-            value[k] = es.weight / p_select;
-            pdf[k] = es.pdf * p_select;
-            delta[k] = es.delta;
-        }
-    }
-    let value = V3::from_fn(|k| value[k]);
-    EmitterLanes {
-        d: V3::from_fn(|k| d[k]),
-        dist: L::from(dist),
-        some: mask & !value.is_zero(),
-        value,
-        pdf: L::from(pdf),
-        delta: mask_of(|k| delta[k]),
-    }
 }
 
 /// The samples of the camera rays `(o, d, tmax)` (at most [`WIDTH`], `d` unit), each
@@ -301,6 +127,12 @@ pub fn sample_packet(
     let max_depth = L::splat(ps.max_depth as f32);
     let rr_depth = L::splat(ps.rr_depth as f32);
     let sky = V3::splat(ps.environment);
+    // The scene's one medium where it is heterogeneous (`PacketScene::new` takes no
+    // other with it).
+    let het = match ps.media.first() {
+        Some(m) if m.heterogeneous => scene.media[0].heterogeneous.as_deref(),
+        _ => None,
+    };
     let single_medium = (ps.media.len() == 1).then(|| {
         let m = &ps.media[0];
         MediumLanes {
@@ -382,7 +214,7 @@ pub fn sample_packet(
                     &gathered
                 }
             };
-            if ps.area_emitters {
+            if ps.area_emitters && het.is_none() {
                 // ---- An area emitter ahead, counted in expectation ----
                 // The flight passes to it with probability T_hero and then weighs its
                 // emission by β T / mean(r T): count β T (T_hero / mean(r T)) L_e now,
@@ -410,30 +242,46 @@ pub fn sample_packet(
                     counted = ahead & !le.is_zero();
                 }
             }
-            let u = draw_1d(in_medium, rngs);
-            let flight = -(L::ONE - u).ln() / m.sigma_hero;
-            let flight = m.sigma_hero.cmp_gt(L::ZERO).blend(flight, inf);
-            let collided = in_medium & flight.cmp_lt(t_end);
+            // The flights' ends and the albedo volume's value at collisions (1 in a
+            // homogeneous medium).
+            let (collided, flight, volume_albedo) = match het {
+                Some(h) => {
+                    // Delta tracking; the majorant is grey, so r is unchanged.
+                    let f = heterogeneous::sample_flight(h, o, d, t_end, in_medium, rngs);
+                    beta = beta.select(in_medium, beta.mul(f.weight));
+                    d_beta = d_beta.select(in_medium, d_beta.mul(f.weight));
+                    (in_medium & f.collided, f.t, f.albedo)
+                }
+                None => {
+                    let u = draw_1d(in_medium, rngs);
+                    let flight = -(L::ONE - u).ln() / m.sigma_hero;
+                    let flight = m.sigma_hero.cmp_gt(L::ZERO).blend(flight, inf);
+                    let collided = in_medium & flight.cmp_lt(t_end);
+                    if !ps.grey {
+                        // Collision at t: f = T σ_t α, p_c = σ_t,c T_c; passing to the
+                        // end: f = T, p_c = T_c (volpath's chromatic weights).
+                        let t = collided.blend(flight, t_end);
+                        let tr = V3::transmittance(m.sigma, t);
+                        let tr_hero = hero_of(tr);
+                        let w_collided = tr.mul(m.sigma).div(m.sigma_hero * tr_hero);
+                        let w_passed = tr.div(tr_hero);
+                        let w = w_passed.select(collided, w_collided);
+                        beta = beta.select(in_medium, beta.mul(w));
+                        d_beta = d_beta.select(in_medium, d_beta.mul(w));
+                        r_u = r_u.select(in_medium, r_u.mul(w));
+                    }
+                    (collided, flight, V3::splat(Vec3::ONE))
+                }
+            };
             let passed = in_medium & !collided;
-            if !ps.grey {
-                // Collision at t: f = T σ_t α, p_c = σ_t,c T_c; passing to the end:
-                // f = T, p_c = T_c (volpath's chromatic weights).
-                let t = collided.blend(flight, t_end);
-                let tr = V3::transmittance(m.sigma, t);
-                let tr_hero = hero_of(tr);
-                let w_collided = tr.mul(m.sigma).div(m.sigma_hero * tr_hero);
-                let w_passed = tr.div(tr_hero);
-                let w = w_passed.select(collided, w_collided);
-                beta = beta.select(in_medium, beta.mul(w));
-                d_beta = d_beta.select(in_medium, d_beta.mul(w));
-                r_u = r_u.select(in_medium, r_u.mul(w));
-            }
             // dβ without this vertex's own α (for the power tests' wrong variant only).
-            let mut d_beta_before = d_beta.mul(m.albedo);
-            // d(β α)/dα: dβ a + β b at a vertex (Gradient::vertex_factors).
-            d_beta = d_beta.select(collided, d_beta.mul(m.a).add(beta.mul(m.b)));
-            beta = beta.select(collided, beta.mul(m.albedo));
-            if !ps.grey {
+            let mut d_beta_before = d_beta.mul(m.albedo).mul(volume_albedo);
+            // d(β α)/dα: dβ a + β b at a vertex (Gradient::vertex_factors), α the
+            // render's factor times the volume's value.
+            let d_beta_vertex = d_beta.mul(m.a).add(beta.mul(m.b)).mul(volume_albedo);
+            d_beta = d_beta.select(collided, d_beta_vertex);
+            beta = beta.select(collided, beta.mul(m.albedo.mul(volume_albedo)));
+            if !ps.grey && het.is_none() {
                 // Keep mean(r) = 1 (volpath's rescaling).
                 let k = in_medium.blend(r_u.mean(), L::ONE);
                 beta = beta.div(k);
@@ -457,7 +305,8 @@ pub fn sample_packet(
                     let es = sample_emitters(scene, ps, p, nee, rngs);
                     if es.some.any() {
                         let phase = scatter::eval_hg(m.g, d.dot(es.d));
-                        let tr = shadow_transmittance(ps, p, es.d, es.dist, inside, none, es.some);
+                        let ray = (p, es.d, es.dist);
+                        let tr = shadow_transmittance(scene, ps, ray, inside, none, es.some, rngs);
                         let x = es.value.mul(tr).scale(phase * es.weight(phase));
                         let weight_of_x = if settings.nee_ignores_vertex {
                             d_beta_before
@@ -582,7 +431,8 @@ pub fn sample_packet(
                 let cos_out = es.d.dot(n);
                 let lit = es.some & front & cos_out.cmp_gt(L::ZERO);
                 if lit.any() {
-                    let tr = shadow_transmittance(ps, o, es.d, es.dist, inside, hit_surface, lit);
+                    let ray = (o, es.d, es.dist);
+                    let tr = shadow_transmittance(scene, ps, ray, inside, hit_surface, lit, rngs);
                     let pdf = cos_out * L::splat(std::f32::consts::FRAC_1_PI);
                     let f = rho.scale(pdf * es.weight(pdf));
                     let x = f.mul(es.value).mul(tr);

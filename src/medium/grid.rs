@@ -32,7 +32,7 @@ pub enum Wrap {
 }
 
 impl Wrap {
-    #[inline]
+    #[inline(always)]
     fn index(self, i: i32, n: i32) -> usize {
         (match self {
             Wrap::Clamp => i.clamp(0, n - 1),
@@ -241,6 +241,7 @@ fn fetch(g: &GridData, x: usize, y: usize, z: usize) -> Vec3 {
 }
 
 /// The grid's value at local point `q` (unit cube coordinates).
+#[inline]
 fn lookup(g: &GridData, filter: Filter, wrap: Wrap, q: Vec3) -> Vec3 {
     let n = [g.res[0] as i32, g.res[1] as i32, g.res[2] as i32];
     let res = Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32);
@@ -256,17 +257,40 @@ fn lookup(g: &GridData, filter: Filter, wrap: Wrap, q: Vec3) -> Vec3 {
             let w1 = x - f;
             let w0 = Vec3::ONE - w1;
             let i0 = [f.x as i32, f.y as i32, f.z as i32];
+            // Offsets into `data` along each axis (the voxel index times its stride).
+            let (sy, sz) = (g.res[0], g.res[0] * g.res[1]);
             let ix = [wrap.index(i0[0], n[0]), wrap.index(i0[0] + 1, n[0])];
-            let iy = [wrap.index(i0[1], n[1]), wrap.index(i0[1] + 1, n[1])];
-            let iz = [wrap.index(i0[2], n[2]), wrap.index(i0[2] + 1, n[2])];
+            let iy = [
+                wrap.index(i0[1], n[1]) * sy,
+                wrap.index(i0[1] + 1, n[1]) * sy,
+            ];
+            let iz = [
+                wrap.index(i0[2], n[2]) * sz,
+                wrap.index(i0[2] + 1, n[2]) * sz,
+            ];
             let wx = [w0.x, w1.x];
             let wy = [w0.y, w1.y];
             let wz = [w0.z, w1.z];
+            if g.channels == 1 {
+                // A scalar grid (the common density): one channel summed in the same
+                // order as the three below, so the value is the same to the bit.
+                let mut v = 0.0f32;
+                for (c, &z) in iz.iter().enumerate() {
+                    for (b, &y) in iy.iter().enumerate() {
+                        for (a, &xx) in ix.iter().enumerate() {
+                            v += g.data[z + y + xx] * (wx[a] * wy[b] * wz[c]);
+                        }
+                    }
+                }
+                return Vec3::splat(v);
+            }
             let mut v = Vec3::ZERO;
             for (c, &z) in iz.iter().enumerate() {
                 for (b, &y) in iy.iter().enumerate() {
                     for (a, &xx) in ix.iter().enumerate() {
-                        v += fetch(g, xx, y, z) * (wx[a] * wy[b] * wz[c]);
+                        let i = 3 * (z + y + xx);
+                        let value = Vec3::new(g.data[i], g.data[i + 1], g.data[i + 2]);
+                        v += value * (wx[a] * wy[b] * wz[c]);
                     }
                 }
             }

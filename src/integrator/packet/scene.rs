@@ -89,7 +89,11 @@ pub struct Surface {
 /// A medium's extinction and phase function (the albedo is the render's).
 #[derive(Clone, Copy, Debug)]
 pub struct PacketMedium {
+    /// (Unused where `heterogeneous`.)
     pub sigma_t: Vec3,
+    /// A `heterogeneous` medium (or a homogeneous one with a volume albedo): its free
+    /// flights by delta tracking, its shadow rays by ratio tracking.
+    pub heterogeneous: bool,
     /// Henyey–Greenstein's g (0: isotropic).
     pub g: f32,
 }
@@ -287,8 +291,8 @@ impl PacketScene {
         }
         let mut media = Vec::new();
         for m in &scene.media {
-            if m.heterogeneous.is_some() {
-                return Err("a medium is heterogeneous".into());
+            if m.heterogeneous.is_some() && scene.media.len() > 1 {
+                return Err("a heterogeneous medium is not the scene's only one".into());
             }
             if !m.sample_emitters {
                 return Err("a medium does not sample emitters".into());
@@ -304,6 +308,7 @@ impl PacketScene {
             };
             media.push(PacketMedium {
                 sigma_t: m.sigma_t,
+                heterogeneous: m.heterogeneous.is_some(),
                 g,
             });
         }

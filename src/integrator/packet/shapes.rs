@@ -7,8 +7,11 @@
 use glam::{Vec3, Vec4};
 use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
+use super::heterogeneous;
 use super::lanes::{L, V3};
 use super::scene::{MediumKind, PacketScene, SurfaceShape};
+use crate::sampling::Pcg32;
+use crate::scene::Scene;
 
 /// A ray's quadratic against a sphere (unit direction): |o + t d − c|² = r² is
 /// t² + 2bt + c = 0 with b = (o − c)·d and c = |o − c|² − r².
@@ -192,17 +195,19 @@ pub fn surface_normal(ps: &PacketScene, k: usize, p: V3) -> V3 {
 
 /// The transmittance of shadow rays from `o` along unit `d` over `dist`, the origin in
 /// medium shape `inside` (−1: empty space) and on surface `skip` (−1: none), for the
-/// lanes of `mask`: e^{−σ_t ℓ} for the length ℓ of the ray in each medium, 0 where a
+/// lanes of `mask`: e^{−σ_t ℓ} for the length ℓ of the ray in each homogeneous medium,
+/// ratio tracking's estimate in a heterogeneous one (drawing from `rngs`), 0 where a
 /// surface or a dielectric boundary blocks it.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn shadow_transmittance(
+    scene: &Scene,
     ps: &PacketScene,
-    o: V3,
-    d: V3,
-    dist: L,
+    (o, d, dist): (V3, V3, L),
     inside: L,
     skip: L,
     mask: L,
+    rngs: &mut [Pcg32],
 ) -> V3 {
     let mut blocked = !mask;
     for k in 0..ps.surfaces.len() {
@@ -212,19 +217,36 @@ pub fn shadow_transmittance(
     let mut tr = V3::splat(Vec3::ONE);
     for (i, m) in ps.media_shapes.iter().enumerate() {
         let span = MediumSpan::new(&m.kind, o, d);
-        let through = (span.far.min(dist) - span.near.min(dist)).max(L::ZERO);
         let from_inside = inside.cmp_eq(L::splat(i as f32));
         if m.dielectric.is_some() {
             // A dielectric boundary blocks shadow rays (it is no null surface).
             blocked |= from_inside | (span.enters & span.near.cmp_lt(dist));
             continue;
         }
+        let medium = &ps.media[m.medium as usize];
+        if medium.heterogeneous {
+            let h = scene.media[m.medium as usize].heterogeneous.as_deref();
+            let h = h.expect("a packet medium marked heterogeneous is one");
+            let from_outside = span.enters & span.near.cmp_lt(dist);
+            let start = from_inside.blend(L::ZERO, span.near);
+            let end = from_inside.blend(span.exit, span.far).min(dist);
+            let through = !blocked & (from_inside | from_outside);
+            if through.any() {
+                tr = tr.mul(heterogeneous::transmittance(
+                    h,
+                    o,
+                    d,
+                    (start, end),
+                    through,
+                    rngs,
+                ));
+            }
+            continue;
+        }
+        let through = (span.far.min(dist) - span.near.min(dist)).max(L::ZERO);
         let len = from_inside.blend(span.exit.min(dist), span.enters.blend(through, L::ZERO));
         if len.cmp_gt(L::ZERO).any() {
-            tr = tr.mul(V3::transmittance(
-                V3::splat(ps.media[m.medium as usize].sigma_t),
-                len,
-            ));
+            tr = tr.mul(V3::transmittance(V3::splat(medium.sigma_t), len));
         }
     }
     tr.select(blocked, V3::splat(Vec3::ZERO))

@@ -116,6 +116,75 @@ fn fog_rays() -> Vec<Vec3A> {
     .collect()
 }
 
+/// A cloud: a heterogeneous medium in a turned cube (a 4×4×4 chromatic σ_t grid, a
+/// 2×2×2 albedo grid, HG) over a diffuse floor, lit by a directional light, a point
+/// light and the sky: delta tracking, ratio-tracked shadow rays through the cube from
+/// inside and from the floor, and the albedo volume's value at each collision.
+const CLOUD: &str = r#"<scene version="3.0.0">
+    <integrator type="volpath"><integer name="rr_depth" value="3"/></integrator>
+    <sensor type="perspective"><film type="hdrfilm">
+        <integer name="width" value="4"/><integer name="height" value="4"/></film></sensor>
+    <shape type="cube"><transform name="to_world"><scale value="0.5"/>
+            <rotate y="1" angle="25"/><translate x="0" y="0" z="4"/></transform>
+        <bsdf type="null"/>
+        <medium type="heterogeneous" name="interior">
+            <volume name="sigma_t" type="gridvolume">
+                <string name="filename" value="packet_cloud_sigma_t.vol"/>
+                <transform name="to_world"><translate value="-0.5, -0.5, -0.5"/>
+                    <rotate y="1" angle="25"/><translate x="0" y="0" z="4"/></transform>
+            </volume>
+            <volume name="albedo" type="gridvolume">
+                <string name="filename" value="packet_cloud_albedo.vol"/>
+                <transform name="to_world"><translate value="-0.5, -0.5, -0.5"/>
+                    <rotate y="1" angle="25"/><translate x="0" y="0" z="4"/></transform>
+            </volume>
+            <float name="scale" value="$scale"/>
+            <phase type="hg"><float name="g" value="0.5"/></phase></medium></shape>
+    <shape type="rectangle"><transform name="to_world"><scale value="3"/>
+        <rotate x="1" angle="-90"/><translate x="0" y="-0.9" z="4"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.6, 0.7"/></bsdf></shape>
+    <emitter type="point"><point name="position" x="0.5" y="2" z="3.5"/>
+        <rgb name="intensity" value="5, 5, 5"/></emitter>
+    <emitter type="directional"><vector name="direction" x="0.3" y="-1" z="0.2"/>
+        <rgb name="irradiance" value="1.5, 1.5, 1.5"/></emitter>
+    <emitter type="constant"><rgb name="radiance" value="0.3, 0.35, 0.45"/></emitter>
+</scene>"#;
+
+/// [`CLOUD`] with its density scaled by `scale`, its grids written beside it.
+fn cloud(name: &str, scale: f32) -> Scene {
+    use crate::medium::grid::write_vol;
+    let dir = std::env::temp_dir().join(format!("mediareg_packet_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let sigma_t: Vec<f32> = (0..64)
+        .flat_map(|i| {
+            let v = 0.5 + ((i * 7) % 11) as f32 * 0.5;
+            [v, 1.5 * v, 0.8 * v]
+        })
+        .collect();
+    let albedo = [0.9, 0.6, 0.8, 0.95, 0.7, 0.85, 0.5, 0.99];
+    for (file, data, res, channels) in [
+        ("packet_cloud_sigma_t.vol", &sigma_t[..], [4, 4, 4], 3),
+        ("packet_cloud_albedo.vol", &albedo[..], [2, 2, 2], 1),
+    ] {
+        std::fs::write(dir.join(file), write_vol(res, channels, data)).unwrap();
+    }
+    load_xml(name, &CLOUD.replace("$scale", &scale.to_string()))
+}
+
+/// Rays into the cloud (centre, edge, corner), the floor in its shadow and beside it.
+fn cloud_rays() -> Vec<Vec3A> {
+    [
+        (0.0, 0.0),
+        (0.1, 0.08),
+        (-0.15, 0.12),
+        (0.0, -0.2),
+        (0.3, -0.2),
+    ]
+    .into_iter()
+    .map(|(x, y)| Vec3A::new(x, y, 1.0).normalize())
+    .collect()
+}
+
 fn load_xml(name: &str, xml: &str) -> Scene {
     crate::integrator::scene_from_xml("packet", name, xml)
 }
@@ -290,6 +359,7 @@ fn packets_equal_scalar_paths_in_expectation() {
     let boxed = load_xml("box_area_light", &box_and_area_light());
     let fog = load_xml("fog", FOG);
     let glass = load_xml("glass", &glass_and_area_light());
+    let cloud = cloud("cloud", 0.7);
     let gradients = [
         Gradient::None,
         Gradient::Albedo(0),
@@ -306,8 +376,18 @@ fn packets_equal_scalar_paths_in_expectation() {
             ("box", &boxed, box_rays()),
             ("fog", &fog, fog_rays()),
             ("glass", &glass, box_rays()),
+            ("cloud", &cloud, cloud_rays()),
         ];
         for (name, scene, rays) in scenes {
+            // The cloud's one medium is medium 0.
+            let g = match g {
+                Gradient::Albedo(m) => Gradient::Albedo(m.min(scene.media.len() as u32 - 1)),
+                Gradient::Difference { medium, target } => Gradient::Difference {
+                    medium: medium.min(scene.media.len() as u32 - 1),
+                    target,
+                },
+                g => g,
+            };
             let z = largest_z(scene, &rays, g, None, 100 + 10 * i as u64);
             println!("{name}, {g:?}: largest |z| {z:.2}");
             assert!(z < Z_LIMIT, "{name}, {g:?}: |z| = {z} ≥ {Z_LIMIT}");
@@ -334,6 +414,29 @@ fn the_comparison_detects_an_albedo_two_percent_off() {
             );
         }
     }
+}
+
+/// Power in the heterogeneous medium: the packet's cloud with its albedo 2% low, or
+/// its density 5% high (delta and ratio tracking against a different volume), must be
+/// caught.
+#[test]
+fn the_comparison_detects_a_cloud_two_percent_darker_or_five_percent_denser() {
+    let scene = cloud("cloud_power", 0.7);
+    let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
+    let darker = albedo.iter().map(|a| *a * 0.98).collect();
+    let z = largest_z(&scene, &cloud_rays(), Gradient::None, Some(darker), 800);
+    println!("cloud 2% darker: largest |z| {z:.2}");
+    assert!(
+        z >= Z_LIMIT,
+        "the cloud 2% darker went undetected: |z| = {z}"
+    );
+    let denser = cloud("cloud_denser", 0.735);
+    let z = largest_z_against(&scene, &denser, &cloud_rays(), Gradient::None, None, 810);
+    println!("cloud 5% denser: largest |z| {z:.2}");
+    assert!(
+        z >= Z_LIMIT,
+        "the cloud 5% denser went undetected: |z| = {z}"
+    );
 }
 
 /// Power on the emitter samples: a point light 5% brighter, or a directional light 5%
@@ -502,6 +605,8 @@ fn the_packet_takes_media_spheres_diffuse_shapes_and_delta_lights_only() {
     assert!(PacketScene::new(&scene).is_ok());
     let scene = load_xml("takes_glass", &glass_and_area_light());
     assert!(PacketScene::new(&scene).is_ok_and(|ps| ps.dielectrics));
+    let scene = cloud("takes_cloud", 1.0);
+    assert!(PacketScene::new(&scene).is_ok());
     let scene = load_xml("takes_fog", FOG);
     let ps = PacketScene::new(&scene).expect("the fog is a packet scene");
     assert!(ps.takes_camera_ray(Vec3::ZERO, 1e4));
@@ -562,6 +667,17 @@ fn the_packet_takes_media_spheres_diffuse_shapes_and_delta_lights_only() {
             "path",
             TWO_SPHERES.replace(r#"type="volpath""#, r#"type="path""#),
             "not volpath",
+        ),
+        (
+            "cloud_and_sphere",
+            CLOUD.replace("$scale", "1").replace(
+                "<emitter type=\"point\">",
+                r#"<shape type="sphere"><point name="center" x="1.5" y="0" z="4"/>
+                    <float name="radius" value="0.3"/><bsdf type="null"/>
+                    <medium type="homogeneous" name="interior"/></shape>
+                <emitter type="point">"#,
+            ),
+            "only one",
         ),
         (
             "peaked",

@@ -1,0 +1,343 @@
+//! A heterogeneous medium in lanes (`medium::heterogeneous`'s estimators): free flights
+//! by delta tracking and shadow rays' transmittance by ratio tracking, each lane with
+//! its own draws in the scalar code's order. The tentative collisions of all lanes step
+//! together until the last lane's flight ends; the volume is looked up lane by lane
+//! (a gather of its voxels), everything else in lanes.
+
+use glam::Vec3;
+use wide::{i32x8, CmpGe, CmpGt, CmpLe, CmpLt};
+
+use super::lanes::{draw_1d, lanes_of, L, V3, WIDTH};
+use crate::medium::grid::{Filter, GridData, Source, Volume, Wrap};
+use crate::medium::heterogeneous::HeterogeneousMedium;
+use crate::sampling::Pcg32;
+
+/// Where the lanes' free flights ended: a real collision (`collided`, at `t`, the
+/// volume's albedo there) or none, and each flight's weight (the product of the null
+/// collisions' σ_n / mean(σ_n), times σ_t / mean(σ_t) at the real one).
+pub struct Flight {
+    pub collided: L,
+    pub t: L,
+    pub weight: V3,
+    /// The albedo volume's value at the collision (1 where none).
+    pub albedo: V3,
+}
+
+/// The stretch [t0, t1] ⊂ [tmin, tmax] of each ray where the extinction can be non-zero
+/// (within the σ_t volume's box, `HeterogeneousMedium::span`), and the lanes where it is
+/// not empty.
+#[inline(always)]
+fn span(h: &HeterogeneousMedium, o: V3, d: V3, tmin: L, tmax: L) -> (L, L, L) {
+    if !h.bounded {
+        return (tmin, tmax, tmin.cmp_le(tmax));
+    }
+    let [lo, hi] = h.sigma_t.bbox;
+    let mut near = tmin;
+    let mut far = tmax;
+    for (o, d, lo, hi) in [
+        (o.x, d.x, lo.x, hi.x),
+        (o.y, d.y, lo.y, hi.y),
+        (o.z, d.z, lo.z, hi.z),
+    ] {
+        let inv = L::ONE / d;
+        let a = (L::splat(lo) - o) * inv;
+        let b = (L::splat(hi) - o) * inv;
+        // On a slab's plane with d = 0, 0 · ∞ is NaN: min and max then keep the bound.
+        near = near.max(a.min(b));
+        far = far.min(a.max(b));
+    }
+    (near, far, near.cmp_le(far))
+}
+
+/// The volume's values at the points `p` of the lanes of `mask` (elsewhere 0 or the
+/// value at `p`): a clamped trilinear grid (Mitsuba's default) in lanes but for the
+/// voxels' loads, any other grid lane by lane by the scalar lookup.
+#[inline(always)]
+fn eval(v: &Volume, p: V3, mask: L) -> V3 {
+    match &v.source {
+        Source::Const(c) => V3::splat(*c),
+        Source::Grid {
+            grid,
+            filter: Filter::Trilinear,
+            wrap: Wrap::Clamp,
+        } => trilinear_clamped(v, grid, p, mask),
+        Source::Grid { .. } => {
+            let mut out = [Vec3::ZERO; WIDTH];
+            for k in lanes_of(mask.move_mask()) {
+                out[k] = v.eval(p.lane_a(k));
+            }
+            V3::from_fn(|k| out[k])
+        }
+    }
+}
+
+/// `grid::lookup`'s trilinear filter with clamped indices, in lanes: the local point
+/// x = q · res − 0.5 split into ⌊x⌋ and weights x − ⌊x⌋, the eight voxels around it
+/// summed in the scalar lookup's order.
+fn trilinear_clamped(v: &Volume, g: &GridData, p: V3, mask: L) -> V3 {
+    let m = &v.to_local;
+    let row = |k: usize| {
+        let (a, b, c) = (
+            m.matrix3.x_axis[k],
+            m.matrix3.y_axis[k],
+            m.matrix3.z_axis[k],
+        );
+        L::splat(a) * p.x + L::splat(b) * p.y + L::splat(c) * p.z + L::splat(m.translation[k])
+    };
+    // Per axis: the two voxel indices (clamped) and their weights.
+    let axis = |k: usize| {
+        let n = g.res[k] as f32;
+        let x = row(k) * L::splat(n) - L::splat(0.5);
+        let f = x.floor();
+        let w1 = x - f;
+        let last = L::splat(n - 1.0);
+        let i0 = f.max(L::ZERO).min(last).fast_round_int();
+        let i1 = (f + L::ONE).max(L::ZERO).min(last).fast_round_int();
+        ([i0, i1], [L::ONE - w1, w1])
+    };
+    let (ix, wx) = axis(0);
+    let (iy, wy) = axis(1);
+    let (iz, wz) = axis(2);
+    let (sy, sz) = (
+        i32x8::splat(g.res[0] as i32),
+        i32x8::splat((g.res[0] * g.res[1]) as i32),
+    );
+    let channels = i32x8::splat(g.channels as i32);
+    let bits = mask.move_mask();
+    let mut value = V3::splat(Vec3::ZERO);
+    for (c, &z) in iz.iter().enumerate() {
+        for (b, &y) in iy.iter().enumerate() {
+            for (a, &x) in ix.iter().enumerate() {
+                let index = ((z * sz + y * sy + x) * channels).to_array();
+                let w = wx[a] * wy[b] * wz[c];
+                let load = |o: usize| {
+                    let mut out = [0f32; WIDTH];
+                    for k in lanes_of(bits) {
+                        out[k] = g.data[index[k] as usize + o];
+                    }
+                    L::from(out)
+                };
+                if g.channels == 1 {
+                    let d = load(0);
+                    value = value.add(V3 { x: d, y: d, z: d }.scale(w));
+                } else {
+                    let d = V3 {
+                        x: load(0),
+                        y: load(1),
+                        z: load(2),
+                    };
+                    value = value.add(d.scale(w));
+                }
+            }
+        }
+    }
+    value
+}
+
+/// The step to the next tentative collision, `−ln(1 − u) / σ̄`, for the lanes of
+/// `mask` (one draw each).
+#[inline(always)]
+fn step(mask: L, inv_majorant: L, rngs: &mut [Pcg32]) -> L {
+    let u = draw_1d(mask, rngs);
+    -(L::ONE - u).ln() * inv_majorant
+}
+
+/// Delta tracking from `o` along unit `d` up to `tmax` for the lanes of `mask`
+/// (`HeterogeneousMedium::sample_flight`).
+pub fn sample_flight(
+    h: &HeterogeneousMedium,
+    o: V3,
+    d: V3,
+    tmax: L,
+    mask: L,
+    rngs: &mut [Pcg32],
+) -> Flight {
+    let mut weight = V3::splat(Vec3::ONE);
+    let mut albedo = V3::splat(Vec3::ONE);
+    let mut collided = L::ZERO;
+    let (mut t, t1, some) = span(h, o, d, L::ZERO, tmax);
+    let mut active = if h.majorant > 0.0 {
+        mask & some
+    } else {
+        L::ZERO
+    };
+    let majorant = V3::splat(Vec3::splat(h.majorant));
+    let inv_majorant = L::splat(1.0 / h.majorant);
+    let scale = L::splat(h.scale);
+    while active.any() {
+        t = active.blend(t + step(active, inv_majorant, rngs), t);
+        active &= t.cmp_lt(t1);
+        if active.none() {
+            break;
+        }
+        let p = o.add(d.scale(t));
+        let sigma_t = eval(&h.sigma_t, p, active).scale(scale);
+        let mean = sigma_t.mean();
+        // Real with probability P = mean(σ_t) / σ̄, else null.
+        let u = draw_1d(active, rngs);
+        let real = active & u.cmp_lt(mean * inv_majorant);
+        if real.any() {
+            weight = weight.select(real, weight.mul(sigma_t.div(mean)));
+            albedo = albedo.select(real, eval(&h.albedo, p, real));
+            collided |= real;
+        }
+        let null = active & !real;
+        let sigma_n = majorant.sub(sigma_t);
+        let m = sigma_n.mean();
+        // No null collision can happen where σ_n is 0 in every channel (σ_t at the
+        // majorant): the scalar flight passes with weight 0 there.
+        let stuck = null & m.cmp_le(L::ZERO);
+        weight = weight.select(stuck, V3::splat(Vec3::ZERO));
+        active = null & !stuck;
+        weight = weight.select(active, weight.mul(sigma_n.div(m)));
+    }
+    Flight {
+        collided,
+        t,
+        weight,
+        albedo,
+    }
+}
+
+/// Ratio tracking over [tmin, tmax] of the rays from `o` along unit `d`, for the lanes
+/// of `mask` (1 elsewhere): an unbiased estimate of e^{−∫σ_t}
+/// (`HeterogeneousMedium::transmittance`, with its Russian roulette).
+pub fn transmittance(
+    h: &HeterogeneousMedium,
+    o: V3,
+    d: V3,
+    (tmin, tmax): (L, L),
+    mask: L,
+    rngs: &mut [Pcg32],
+) -> V3 {
+    let mut tr = V3::splat(Vec3::ONE);
+    let (mut t, t1, some) = span(h, o, d, tmin, tmax);
+    let mut active = if h.majorant > 0.0 {
+        mask & some
+    } else {
+        L::ZERO
+    };
+    let majorant = V3::splat(Vec3::splat(h.majorant));
+    let inv_majorant = L::splat(1.0 / h.majorant);
+    let scale = L::splat(h.scale);
+    while active.any() {
+        t = active.blend(t + step(active, inv_majorant, rngs), t);
+        active &= t.cmp_lt(t1);
+        if active.none() {
+            break;
+        }
+        let sigma_t = eval(&h.sigma_t, o.add(d.scale(t)), active).scale(scale);
+        tr = tr.select(active, majorant.sub(sigma_t).scale(inv_majorant).mul(tr));
+        // Russian roulette once little is left (survivors weigh 1/q, q = 1/2); the
+        // scalar code draws only where something is left.
+        let m = tr.max_element();
+        let low = active & m.cmp_lt(L::splat(0.1));
+        if low.any() {
+            let left = low & m.cmp_gt(L::ZERO);
+            let u = draw_1d(left, rngs);
+            let ended = (low & !left) | (left & u.cmp_ge(L::splat(0.5)));
+            tr = tr.select(ended, V3::splat(Vec3::ZERO));
+            tr = tr.select(low & !ended, tr.scale(L::splat(2.0)));
+            active &= !ended;
+        }
+    }
+    tr
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::packet::lanes::mask_of;
+    use crate::medium::grid::{parse_vol, write_vol};
+    use glam::{Affine3A, Vec3A};
+    use wide::CmpEq;
+
+    /// A 2×2×2 grey grid, thin and dense in turn along x, in the unit box.
+    fn medium() -> HeterogeneousMedium {
+        let data = [0.2, 3.0, 0.2, 3.0, 0.5, 2.0, 0.5, 2.0];
+        let grid = parse_vol(&write_vol([2, 2, 2], 1, &data)).unwrap();
+        let sigma_t = Volume::new(
+            Source::Grid {
+                grid,
+                filter: Filter::Trilinear,
+                wrap: Wrap::Clamp,
+            },
+            Affine3A::IDENTITY,
+        );
+        HeterogeneousMedium {
+            majorant: 1.5 * sigma_t.max,
+            sigma_t,
+            albedo: Volume::new(Source::Const(Vec3::splat(0.7)), Affine3A::IDENTITY),
+            scale: 1.0,
+            bounded: true,
+        }
+    }
+
+    /// The lanes' estimators have the scalar ones' means: ratio tracking's and delta
+    /// tracking's pass weights both estimate the transmittance, and the collisions'
+    /// mean distance matches; each within 5 standard errors of the scalar mean. Power:
+    /// against a scalar medium 10% denser, every one of them is off by more.
+    #[test]
+    fn lanes_estimate_what_the_scalar_code_does() {
+        let h = medium();
+        let mut denser = medium();
+        denser.scale = 1.1;
+        denser.majorant *= 1.1;
+        let o = Vec3A::new(-0.5, 0.3, 0.6);
+        let d = Vec3A::new(1.0, 0.2, -0.1).normalize();
+        let n = 20_000;
+        let mut rngs: Vec<Pcg32> = (0..WIDTH as u64).map(|k| Pcg32::new(11, k)).collect();
+        let mut rng = Pcg32::new(5, 99);
+        let ol = V3::splat(Vec3::from(o));
+        let dl = V3::splat(Vec3::from(d));
+        let all = mask_of(|_| true);
+        let mut lanes: [Vec<f64>; 3] = Default::default();
+        let mut scalar: [[Vec<f64>; 3]; 2] = Default::default();
+        for _ in 0..n / WIDTH {
+            let tr = transmittance(&h, ol, dl, (L::ZERO, L::splat(3.0)), all, &mut rngs);
+            let f = sample_flight(&h, ol, dl, L::splat(3.0), all, &mut rngs);
+            for k in 0..WIDTH {
+                lanes[0].push(tr.lane(k).x as f64);
+                let c = f.collided.move_mask() >> k & 1 == 1;
+                lanes[1].push(if c { 0.0 } else { f.weight.lane(k).x as f64 });
+                lanes[2].push(if c { f.t.as_array_ref()[k] as f64 } else { 0.0 });
+            }
+            for (m, out) in [&h, &denser].into_iter().zip(&mut scalar) {
+                for _ in 0..WIDTH {
+                    out[0].push(m.transmittance(o, d, 3.0, &mut rng).x as f64);
+                    let (c, w) = m.sample_flight(o, d, 3.0, &mut rng);
+                    out[1].push(if c.is_some() { 0.0 } else { w.x as f64 });
+                    out[2].push(c.map_or(0.0, |c| c.t as f64));
+                }
+            }
+        }
+        let stats = |v: &[f64]| {
+            let m = v.iter().sum::<f64>() / v.len() as f64;
+            let var = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (v.len() - 1) as f64;
+            (m, var / v.len() as f64)
+        };
+        for (i, name) in [
+            "ratio tracking",
+            "delta tracking's pass",
+            "collision distance",
+        ]
+        .iter()
+        .enumerate()
+        {
+            let (a, va) = stats(&lanes[i]);
+            let [same, off] = [0, 1].map(|j| {
+                let (b, vb) = stats(&scalar[j][i]);
+                (a - b) / (va + vb).sqrt()
+            });
+            assert!(
+                same.abs() < 5.0,
+                "{name}: lanes {a} against scalar, z = {same}"
+            );
+            assert!(off.abs() >= 5.0, "{name}: 10% denser undetected, z = {off}");
+        }
+        // And the collisions carry the albedo volume's value.
+        let f = sample_flight(&h, ol, dl, L::splat(3.0), all, &mut rngs);
+        let hit = f.collided & f.albedo.x.cmp_eq(L::splat(0.7));
+        assert_eq!(hit.move_mask(), f.collided.move_mask());
+    }
+}
