@@ -134,12 +134,44 @@ fn trilinear_clamped(v: &Volume, g: &GridData, p: V3, mask: L) -> V3 {
     value
 }
 
-/// The step to the next tentative collision, `−ln(1 − u) / σ̄`, for the lanes of
-/// `mask` (one draw each).
-#[inline(always)]
-fn step(mask: L, inv_majorant: L, rngs: &mut [Pcg32]) -> L {
-    let u = draw_1d(mask, rngs);
-    -(L::ONE - u).ln() * inv_majorant
+/// Tentative collisions at rate σ̄ along the lanes' rays within the medium's span: the
+/// part delta and ratio tracking share.
+struct Tracker {
+    t: L,
+    t1: L,
+    active: L,
+    majorant: V3,
+    inv_majorant: L,
+    scale: L,
+}
+
+impl Tracker {
+    fn new(h: &HeterogeneousMedium, (o, d): (V3, V3), (tmin, tmax): (L, L), mask: L) -> Self {
+        let (t, t1, some) = span(h, o, d, tmin, tmax);
+        Tracker {
+            t,
+            t1,
+            active: if h.majorant > 0.0 {
+                mask & some
+            } else {
+                L::ZERO
+            },
+            majorant: V3::splat(Vec3::splat(h.majorant)),
+            inv_majorant: L::splat(1.0 / h.majorant),
+            scale: L::splat(h.scale),
+        }
+    }
+
+    /// Steps the active lanes to their next tentative collision, `−ln(1 − u) / σ̄` on
+    /// (one draw each), and drops those past the span: whether any is left.
+    #[inline(always)]
+    fn step(&mut self, rngs: &mut [Pcg32]) -> bool {
+        let u = draw_1d(self.active, rngs);
+        let t = self.t - (L::ONE - u).ln() * self.inv_majorant;
+        self.t = self.active.blend(t, self.t);
+        self.active &= self.t.cmp_lt(self.t1);
+        self.active.any()
+    }
 }
 
 /// Delta tracking from `o` along unit `d` up to `tmax` for the lanes of `mask`
@@ -155,45 +187,33 @@ pub fn sample_flight(
     let mut weight = V3::splat(Vec3::ONE);
     let mut albedo = V3::splat(Vec3::ONE);
     let mut collided = L::ZERO;
-    let (mut t, t1, some) = span(h, o, d, L::ZERO, tmax);
-    let mut active = if h.majorant > 0.0 {
-        mask & some
-    } else {
-        L::ZERO
-    };
-    let majorant = V3::splat(Vec3::splat(h.majorant));
-    let inv_majorant = L::splat(1.0 / h.majorant);
-    let scale = L::splat(h.scale);
-    while active.any() {
-        t = active.blend(t + step(active, inv_majorant, rngs), t);
-        active &= t.cmp_lt(t1);
-        if active.none() {
-            break;
-        }
-        let p = o.add(d.scale(t));
-        let sigma_t = eval(&h.sigma_t, p, active).scale(scale);
+    let mut tracker = Tracker::new(h, (o, d), (L::ZERO, tmax), mask);
+    while tracker.step(rngs) {
+        let active = tracker.active;
+        let p = o.add(d.scale(tracker.t));
+        let sigma_t = eval(&h.sigma_t, p, active).scale(tracker.scale);
         let mean = sigma_t.mean();
         // Real with probability P = mean(σ_t) / σ̄, else null.
         let u = draw_1d(active, rngs);
-        let real = active & u.cmp_lt(mean * inv_majorant);
+        let real = active & u.cmp_lt(mean * tracker.inv_majorant);
         if real.any() {
             weight = weight.select(real, weight.mul(sigma_t.div(mean)));
             albedo = albedo.select(real, eval(&h.albedo, p, real));
             collided |= real;
         }
         let null = active & !real;
-        let sigma_n = majorant.sub(sigma_t);
+        let sigma_n = tracker.majorant.sub(sigma_t);
         let m = sigma_n.mean();
         // No null collision can happen where σ_n is 0 in every channel (σ_t at the
         // majorant): the scalar flight passes with weight 0 there.
         let stuck = null & m.cmp_le(L::ZERO);
         weight = weight.select(stuck, V3::splat(Vec3::ZERO));
-        active = null & !stuck;
-        weight = weight.select(active, weight.mul(sigma_n.div(m)));
+        tracker.active = null & !stuck;
+        weight = weight.select(tracker.active, weight.mul(sigma_n.div(m)));
     }
     Flight {
         collided,
-        t,
+        t: tracker.t,
         weight,
         albedo,
     }
@@ -211,23 +231,12 @@ pub fn transmittance(
     rngs: &mut [Pcg32],
 ) -> V3 {
     let mut tr = V3::splat(Vec3::ONE);
-    let (mut t, t1, some) = span(h, o, d, tmin, tmax);
-    let mut active = if h.majorant > 0.0 {
-        mask & some
-    } else {
-        L::ZERO
-    };
-    let majorant = V3::splat(Vec3::splat(h.majorant));
-    let inv_majorant = L::splat(1.0 / h.majorant);
-    let scale = L::splat(h.scale);
-    while active.any() {
-        t = active.blend(t + step(active, inv_majorant, rngs), t);
-        active &= t.cmp_lt(t1);
-        if active.none() {
-            break;
-        }
-        let sigma_t = eval(&h.sigma_t, o.add(d.scale(t)), active).scale(scale);
-        tr = tr.select(active, majorant.sub(sigma_t).scale(inv_majorant).mul(tr));
+    let mut tracker = Tracker::new(h, (o, d), (tmin, tmax), mask);
+    while tracker.step(rngs) {
+        let active = tracker.active;
+        let sigma_t = eval(&h.sigma_t, o.add(d.scale(tracker.t)), active).scale(tracker.scale);
+        let ratio = tracker.majorant.sub(sigma_t).scale(tracker.inv_majorant);
+        tr = tr.select(active, ratio.mul(tr));
         // Russian roulette once little is left (survivors weigh 1/q, q = 1/2); the
         // scalar code draws only where something is left.
         let m = tr.max_element();
@@ -238,7 +247,7 @@ pub fn transmittance(
             let ended = (low & !left) | (left & u.cmp_ge(L::splat(0.5)));
             tr = tr.select(ended, V3::splat(Vec3::ZERO));
             tr = tr.select(low & !ended, tr.scale(L::splat(2.0)));
-            active &= !ended;
+            tracker.active &= !ended;
         }
     }
     tr
