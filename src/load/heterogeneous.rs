@@ -9,6 +9,7 @@ use super::props::Props;
 use super::Builder;
 use crate::error::{Result, SceneError};
 use crate::medium::grid::Source;
+use crate::medium::majorant::MajorantGrid;
 use crate::medium::{HeterogeneousMedium, HomogeneousMedium};
 use crate::xml::description::ObjId;
 
@@ -69,6 +70,9 @@ impl Builder<'_> {
             sample_emitters,
             id: medium_id,
             heterogeneous: Some(Box::new(HeterogeneousMedium {
+                majorants: bounded
+                    .then(|| MajorantGrid::new(&sigma_t, scale as f32))
+                    .flatten(),
                 sigma_t,
                 albedo,
                 scale: scale as f32,

@@ -17,12 +17,18 @@
 //! product of σ_n / σ̄ over tentative collisions, whose expectation is
 //! `exp(−∫ σ_t)` per channel (Mitsuba's volpath estimates it the same way).
 //!
+//! Where σ_t is a clamped grid, the majorant is local (`medium::majorant`): both walk
+//! the ray through a coarse grid of cells, drawing tentative collisions at each cell's
+//! own σ̄ (an exponential optical depth τ, spent cell by cell), with the weights above
+//! taken against that σ̄. Any majorant gives the same expectation.
+//!
 //! A `homogeneous` medium whose albedo is a grid also lands here, with a constant
 //! unbounded σ_t: then σ̄ = σ_t for grey extinction and no null collision happens.
 
 use glam::{Vec3, Vec3A};
 
 use super::grid::Volume;
+use super::majorant::{self, MajorantGrid};
 use crate::sampling::Pcg32;
 
 #[derive(Clone, Debug)]
@@ -36,6 +42,8 @@ pub struct HeterogeneousMedium {
     /// Whether the extinction ends at sigma_t's box (`heterogeneous`), or fills all
     /// space (a `homogeneous` medium with a volume albedo).
     pub bounded: bool,
+    /// Local majorants, where sigma_t is a clamped grid (else `majorant` everywhere).
+    pub majorants: Option<MajorantGrid>,
 }
 
 /// What a free flight found: a real collision, or none before `tmax`.
@@ -86,6 +94,9 @@ impl HeterogeneousMedium {
         if self.majorant <= 0.0 {
             return (None, w);
         }
+        if let Some(grid) = &self.majorants {
+            return self.sample_flight_local(grid, (o, d), (t0, t1), rng);
+        }
         let inv_major = 1.0 / self.majorant;
         let mut t = t0;
         loop {
@@ -119,6 +130,9 @@ impl HeterogeneousMedium {
         if self.majorant <= 0.0 {
             return tr;
         }
+        if let Some(grid) = &self.majorants {
+            return self.transmittance_local(grid, (o, d), (t0, t1), rng);
+        }
         let inv_major = 1.0 / self.majorant;
         let mut t = t0;
         loop {
@@ -138,6 +152,107 @@ impl HeterogeneousMedium {
             }
         }
     }
+
+    /// [`Self::sample_flight`] over [t0, t1] with the local majorants of `grid`.
+    fn sample_flight_local(
+        &self,
+        grid: &MajorantGrid,
+        (o, d): (Vec3A, Vec3A),
+        span: (f32, f32),
+        rng: &mut Pcg32,
+    ) -> (Option<Collision>, Vec3) {
+        let mut w = Vec3::ONE;
+        let end = self.walk_local(grid, o, d, span, rng, |t, major, rng| {
+            let p = o + d * t;
+            let sigma_t = self.sigma_t_at(p);
+            if rng.next_1d() < mean(sigma_t) / major {
+                w *= sigma_t / mean(sigma_t);
+                let albedo = self.albedo.eval(p);
+                return Some(Some(Collision { t, albedo }));
+            }
+            let sigma_n = Vec3::splat(major) - sigma_t;
+            let m = mean(sigma_n);
+            if m <= 0.0 {
+                w = Vec3::ZERO;
+                return Some(None);
+            }
+            w *= sigma_n / m;
+            None
+        });
+        (end.flatten(), w)
+    }
+
+    /// [`Self::transmittance`] over [t0, t1] with the local majorants of `grid`.
+    fn transmittance_local(
+        &self,
+        grid: &MajorantGrid,
+        (o, d): (Vec3A, Vec3A),
+        span: (f32, f32),
+        rng: &mut Pcg32,
+    ) -> Vec3 {
+        let mut tr = Vec3::ONE;
+        let ended = self.walk_local(grid, o, d, span, rng, |t, major, rng| {
+            tr *= (Vec3::splat(major) - self.sigma_t_at(o + d * t)) / major;
+            let m = tr.max_element();
+            if m < 0.1 {
+                if m <= 0.0 || rng.next_1d() >= 0.5 {
+                    return Some(());
+                }
+                tr *= 2.0;
+            }
+            None
+        });
+        if ended.is_some() {
+            Vec3::ZERO
+        } else {
+            tr
+        }
+    }
+
+    /// Tentative collisions along `o + t d` over [t0, t1] at the local majorants of
+    /// `grid`: an exponential optical depth τ spent cell by cell at each cell's σ̄, a
+    /// collision where it runs out, then a fresh τ. `collide(t, σ̄, rng)` decides at
+    /// each; the walk ends with its answer, or None at t1.
+    fn walk_local<T>(
+        &self,
+        grid: &MajorantGrid,
+        o: Vec3A,
+        d: Vec3A,
+        (t0, t1): (f32, f32),
+        rng: &mut Pcg32,
+        mut collide: impl FnMut(f32, f32, &mut Pcg32) -> Option<T>,
+    ) -> Option<T> {
+        let (ol, dl) = majorant::to_local(&self.sigma_t, o, d);
+        let mut walk = grid.dda(ol, dl, t0);
+        let mut t = t0;
+        let mut tau = optical_depth(rng);
+        loop {
+            let (cell, exit) = walk.cell();
+            let end = exit.min(t1).max(t);
+            let major = grid.at(cell);
+            while major > 0.0 && t + tau / major < end {
+                t += tau / major;
+                if let Some(answer) = collide(t, major, rng) {
+                    return Some(answer);
+                }
+                tau = optical_depth(rng);
+            }
+            if exit >= t1 {
+                return None;
+            }
+            // The rest of the cell spends σ̄ (end − t) of τ.
+            tau = (tau - major * (end - t)).max(0.0);
+            t = end;
+            walk.advance(grid.res());
+        }
+    }
+}
+
+/// An exponential optical depth, −ln(1 − u): the distance to the next tentative
+/// collision in units of 1 / σ̄.
+#[inline]
+fn optical_depth(rng: &mut Pcg32) -> f32 {
+    -(1.0 - rng.next_1d()).ln()
 }
 
 #[inline]
@@ -159,6 +274,7 @@ mod tests {
             albedo: Volume::new(Source::Const(Vec3::splat(0.5)), Affine3A::IDENTITY),
             scale: 1.0,
             bounded: true,
+            majorants: None,
         }
     }
 
@@ -184,5 +300,97 @@ mod tests {
             let err = (got - want).abs().max_element();
             assert!(err < 6e-3, "{name}: {got} vs {want}");
         }
+    }
+
+    /// A sparse 3-channel grid, turned and stretched, with local majorants or without.
+    fn grid_medium(scale: f32, local: bool) -> HeterogeneousMedium {
+        use crate::medium::grid::{parse_vol, write_vol, Filter, Wrap};
+        let res = [12, 9, 7];
+        let data: Vec<f32> = (0..12 * 9 * 7)
+            .flat_map(|i| {
+                let v = if i % 5 == 0 || i % 12 < 3 {
+                    1.0 + (i % 7) as f32
+                } else {
+                    0.0
+                };
+                [v, 0.5 * v, 1.5 * v]
+            })
+            .collect();
+        let grid = parse_vol(&write_vol(res, 3, &data)).unwrap();
+        let to_world = Affine3A::from_scale_rotation_translation(
+            Vec3::new(1.0, 1.5, 0.8),
+            glam::Quat::from_rotation_z(0.3),
+            Vec3::ZERO,
+        );
+        let sigma_t = Volume::new(
+            Source::Grid {
+                grid,
+                filter: Filter::Trilinear,
+                wrap: Wrap::Clamp,
+            },
+            to_world,
+        );
+        let majorants = local
+            .then(|| crate::medium::majorant::MajorantGrid::new(&sigma_t, scale))
+            .flatten();
+        HeterogeneousMedium {
+            majorant: sigma_t.max * scale,
+            majorants,
+            sigma_t,
+            albedo: Volume::new(Source::Const(Vec3::splat(0.5)), Affine3A::IDENTITY),
+            scale,
+            bounded: true,
+        }
+    }
+
+    /// Tracking by local majorants has the global majorant's expectation: transmittance
+    /// (ratio tracking, and delta tracking's pass weight) and the mean collision
+    /// distance, per channel, within 5 standard errors over rays through and beside the
+    /// box. Power: against the medium 10% denser, some of them are off by more.
+    #[test]
+    fn local_majorants_track_the_same_medium() {
+        let global = grid_medium(1.0, false);
+        let local = grid_medium(1.0, true);
+        let denser = grid_medium(1.1, false);
+        assert!(local.majorants.is_some());
+        let rays = [
+            (Vec3A::new(-1.0, 0.7, 0.4), Vec3A::new(1.0, 0.1, 0.05)),
+            (Vec3A::new(0.3, -1.0, 0.3), Vec3A::new(0.2, 1.0, 0.1)),
+            (Vec3A::new(1.5, 1.9, 0.9), Vec3A::new(-1.0, -0.7, -0.3)),
+        ];
+        let n = 40_000;
+        let mut worst_off = 0f64;
+        for (r, (o, d)) in rays.into_iter().enumerate() {
+            let d = d.normalize();
+            let mut rng = Pcg32::new(17, r as u64);
+            let mut estimates = |m: &HeterogeneousMedium| {
+                let mut v: [Vec<f64>; 7] = Default::default();
+                for _ in 0..n {
+                    let tr = m.transmittance(o, d, 4.0, &mut rng);
+                    let (c, w) = m.sample_flight(o, d, 4.0, &mut rng);
+                    for ch in 0..3 {
+                        v[ch].push(tr[ch] as f64);
+                        v[3 + ch].push(if c.is_some() { 0.0 } else { w[ch] as f64 });
+                    }
+                    v[6].push(c.map_or(0.0, |c| c.t as f64));
+                }
+                v.map(|x| {
+                    let mean = x.iter().sum::<f64>() / n as f64;
+                    let var = x.iter().map(|y| (y - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+                    (mean, var / n as f64)
+                })
+            };
+            let (a, b, c) = (estimates(&global), estimates(&local), estimates(&denser));
+            for i in 0..7 {
+                let z = |x: (f64, f64), y: (f64, f64)| (x.0 - y.0) / (x.1 + y.1).sqrt().max(1e-30);
+                let same = z(a[i], b[i]);
+                assert!(same.abs() < 5.0, "ray {r}, estimate {i}: z = {same}");
+                worst_off = worst_off.max(z(b[i], c[i]).abs());
+            }
+        }
+        assert!(
+            worst_off >= 5.0,
+            "10% denser undetected: largest |z| {worst_off}"
+        );
     }
 }

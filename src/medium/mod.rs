@@ -11,6 +11,7 @@
 
 pub mod grid;
 pub mod heterogeneous;
+pub mod majorant;
 pub mod phase;
 
 use glam::Vec3;
