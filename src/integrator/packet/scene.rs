@@ -162,7 +162,8 @@ pub struct PacketScene {
 impl PacketScene {
     /// The packet form of `scene`, or why its paths need the scalar integrator. Taken:
     /// `volpath`; shapes that are `null` spheres or cubes each bounding a homogeneous
-    /// medium inside empty space (no two within reach of each other), or rectangles,
+    /// medium inside empty space (no two within reach of each other; or a heterogeneous
+    /// medium, where it is the scene's only one), or rectangles,
     /// disks, spheres and cubes with a constant `diffuse` BSDF, each inside one medium
     /// shape or clear of all; the camera in empty space or in a medium that fills one
     /// shape ([`PacketScene::takes_camera_ray`] checks a shot's camera); isotropic or
