@@ -81,12 +81,15 @@ pub struct Accel {
 
 impl Accel {
     /// The accelerator over `shapes` with [`Backend::requested`] (obvhs, with a warning,
-    /// where that is an error).
-    pub fn build(shapes: &[&Geometry]) -> Accel {
+    /// where that is an error). `filtered`: whether it will be asked the searches that
+    /// pass over some shapes ([`Accel::intersect_where`], [`Accel::crossings`]); without,
+    /// Embree's scene is built without filter functions, and those searches fall back
+    /// to plain casts.
+    pub fn build(shapes: &[&Geometry], filtered: bool) -> Accel {
         match Backend::requested() {
-            Ok(b) => Self::build_with(shapes, b),
+            Ok(b) => Self::build_filtered(shapes, b, filtered),
             Err(e) => {
-                let mut a = Self::build_with(shapes, Backend::Obvhs);
+                let mut a = Self::build_filtered(shapes, Backend::Obvhs, filtered);
                 a.warning = Some(format!("{e}; rays are cast with obvhs instead"));
                 a
             }
@@ -129,7 +132,12 @@ impl Accel {
         Backend::Obvhs
     }
 
+    /// The accelerator over `shapes` with `backend`, for every kind of search.
     pub fn build_with(shapes: &[&Geometry], backend: Backend) -> Accel {
+        Self::build_filtered(shapes, backend, true)
+    }
+
+    fn build_filtered(shapes: &[&Geometry], backend: Backend, filtered: bool) -> Accel {
         let n_analytic = shapes
             .iter()
             .filter(|g| !matches!(g, Geometry::Mesh(_)))
@@ -206,7 +214,8 @@ impl Accel {
         const _: () = assert!(EMBREE_MIN_TRIANGLES > BRUTE_FORCE_PRIMS);
         let embree_wanted =
             backend == Backend::Embree && !mixed && prims.len() >= EMBREE_MIN_TRIANGLES;
-        let (embree, warning) = match embree_wanted.then(|| Self::build_embree(shapes, &prims)) {
+        let build = || Self::build_embree(shapes, &prims, filtered);
+        let (embree, warning) = match embree_wanted.then(build) {
             Some(Ok(e)) => (Some(e), None),
             Some(Err(e)) => (None, Some(format!("{e}; rays are cast with obvhs instead"))),
             None => (None, None),
@@ -283,6 +292,7 @@ impl Accel {
     fn build_embree(
         shapes: &[&Geometry],
         prims: &[PrimRef],
+        filtered: bool,
     ) -> Result<embree::EmbreeScene, String> {
         let mut meshes = Vec::new();
         let mut leaf = 0;
@@ -301,7 +311,7 @@ impl Accel {
         }
         let api = embree_api::load()
             .map_err(|e| format!("Embree 3 does not load ({e}); {}", embree_api::INSTALL_HINT))?;
-        embree::EmbreeScene::build(api, &meshes)
+        embree::EmbreeScene::build(api, &meshes, filtered)
     }
 
     /// The cube `shape` as the accelerator tests it, if it is tested as a box.
@@ -480,10 +490,21 @@ impl Accel {
             return best;
         }
         if let Some(e) = &self.embree {
-            let found = if filtered {
+            let found = if !filtered {
+                e.intersect(o, d, t_best)
+            } else if e.filters {
                 e.intersect_filtered(o, d, t_best, &mut |c| keep(c.shape))
             } else {
-                e.intersect(o, d, t_best)
+                // Built without filters (not expected to be asked): past every hit
+                // `keep` refuses, one plain cast after another.
+                let mut tnear = 0.0;
+                loop {
+                    match e.intersect_from(o, d, tnear, t_best) {
+                        Some(h) if !keep(h.shape) && h.t < t_best => tnear = h.t.next_up(),
+                        Some(h) if keep(h.shape) => break Some(h),
+                        _ => break None,
+                    }
+                }
             };
             return found.or(best);
         }
@@ -634,7 +655,7 @@ impl Accel {
             }
             return Crossings::Found;
         }
-        if let Some(e) = &self.embree {
+        if let Some(e) = self.embree.as_ref().filter(|e| e.filters) {
             // Embree may hand over a triangle twice (see `each_hit`): each counts once.
             let mut seen = arrayvec::ArrayVec::<u32, MAX_CROSSINGS>::new();
             let mut answer = None;
@@ -657,6 +678,10 @@ impl Accel {
                 answer.is_some()
             });
             return answer.unwrap_or(Crossings::Found);
+        }
+        if self.embree.is_some() {
+            // Built without filters (not expected to be asked): one cast per crossing.
+            return Crossings::Unsupported;
         }
         let mut answer = None;
         let mut each = |id: usize, t: f32| {

@@ -82,6 +82,8 @@ pub struct Scene {
     pub accel: Accel,
     /// How each shape treats shadow rays (by its BSDF), for [`Accel::crossings`].
     pub shadow_pass: Vec<ShadowPass>,
+    /// Every shape blocks shadow rays: a crossings search is an occlusion test.
+    pub shadow_rays_blocked: bool,
     /// Lower bounds on the distance to the nearest surface (built for scenes with
     /// media, where free flights and shadow rays use them; none otherwise).
     pub clearance: Clearance,
@@ -212,6 +214,15 @@ impl Scene {
     #[inline]
     pub fn crossings(&self, o: Vec3A, d: Vec3A, tmax: f32, out: &mut CrossingList) -> Crossings {
         self.log_cast(ray_log::Cast::Crossings, o, d, tmax);
+        if self.shadow_rays_blocked {
+            // Whatever is hit blocks: the first hit answers (a plain occlusion test).
+            out.clear();
+            return if self.accel.occluded(&self.geometries, o, d, tmax) {
+                Crossings::Blocked
+            } else {
+                Crossings::Found
+            };
+        }
         self.accel
             .crossings(&self.geometries, &self.shadow_pass, o, d, tmax, out)
     }

@@ -57,8 +57,19 @@ impl Scene {
             integrator,
             mut warnings,
         } = parts;
+        let shadow_pass: Vec<ShadowPass> = shapes
+            .iter()
+            .map(|info| bsdfs[info.bsdf as usize].shadow_pass())
+            .collect();
+        // Where every surface blocks shadow rays and none bounds a medium, nothing asks
+        // the accelerator for the searches that pass over some shapes (crossings, or
+        // the ties of a medium's boundary): Embree is then built without filters.
+        let shadow_rays_blocked = shadow_pass.iter().all(|p| *p == ShadowPass::Blocks);
+        let boundaries = shapes
+            .iter()
+            .any(|s| s.interior.is_some() || s.exterior.is_some());
         let refs: Vec<&Geometry> = geometries.iter().collect();
-        let mut accel = Accel::build(&refs);
+        let mut accel = Accel::build(&refs, !shadow_rays_blocked || boundaries);
         warnings.extend(accel.warning.take());
         // The clearance saves ray casts; where a cast is a few analytic tests (no BVH), the
         // two grid lookups a scattering cost more than the cast, and the shadow roulette's
@@ -108,10 +119,6 @@ impl Scene {
                 1.0
             }
         };
-        let shadow_pass: Vec<ShadowPass> = shapes
-            .iter()
-            .map(|info| bsdfs[info.bsdf as usize].shadow_pass())
-            .collect();
         // volpath and path leave a uniform sky to BSDF and phase sampling; direct keeps it (its
         // emitter samples may be all it takes). See EmitterSelection::new.
         let emitter_selection = EmitterSelection::new(
@@ -144,6 +151,7 @@ impl Scene {
             convex_media,
             emitters_unreachable,
             shadow_pass,
+            shadow_rays_blocked,
             emitter_selection,
             area_emitter_bounds,
             geometries,

@@ -28,6 +28,9 @@ pub(crate) struct EmbreeScene {
     first_leaf: Vec<u32>,
     /// The shape each geometry is (by `geomID`).
     shape: Vec<u32>,
+    /// Whether the scene takes queries with a filter function (`intersect_filtered`,
+    /// `each_hit`): only where it was built for them.
+    pub(crate) filters: bool,
 }
 
 // SAFETY: the scene is committed before an `EmbreeScene` is handed out and never
@@ -119,8 +122,13 @@ fn ray(o: Vec3A, d: Vec3A, tmax: f32) -> sys::Ray {
 }
 
 impl EmbreeScene {
-    /// The committed scene of `meshes`, or why Embree could not build it.
-    pub(crate) fn build(api: &'static Api, meshes: &[MeshRef]) -> Result<EmbreeScene, String> {
+    /// The committed scene of `meshes`, or why Embree could not build it; `filters`:
+    /// whether it will be asked queries with a filter function.
+    pub(crate) fn build(
+        api: &'static Api,
+        meshes: &[MeshRef],
+        filters: bool,
+    ) -> Result<EmbreeScene, String> {
         // SAFETY: plain Embree API calls on handles created here; buffer writes stay
         // within the sizes asked for (Embree pads new buffers for its 16-byte loads).
         unsafe {
@@ -136,14 +144,18 @@ impl EmbreeScene {
                 scene,
                 first_leaf: Vec::with_capacity(meshes.len()),
                 shape: Vec::with_capacity(meshes.len()),
+                filters,
             };
             if scene.is_null() {
                 return Err(s.error("rtcNewScene"));
             }
             (api.set_scene_build_quality)(scene, sys::BUILD_QUALITY_HIGH);
             // Filter functions in the intersect context (`filter` above) are called
-            // only where the scene allows them; a query without one pays a null check.
-            (api.set_scene_flags)(scene, sys::SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+            // only where the scene allows them; allowed, every query pays for it (4% of
+            // a surface scene's render), so only a scene that asks for them has them.
+            if filters {
+                (api.set_scene_flags)(scene, sys::SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+            }
             for m in meshes {
                 let geometry = (api.new_geometry)(device, sys::GEOMETRY_TYPE_TRIANGLE);
                 if geometry.is_null() {
@@ -205,8 +217,14 @@ impl EmbreeScene {
     /// the cache on most hits.
     #[inline(always)]
     pub(crate) fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<Hit> {
+        self.intersect_from(o, d, 0.0, tmax)
+    }
+
+    /// The closest hit with tnear ≤ t ≤ tmax.
+    #[inline(always)]
+    pub(crate) fn intersect_from(&self, o: Vec3A, d: Vec3A, tnear: f32, tmax: f32) -> Option<Hit> {
         let mut ctx = IntersectContext::new(None);
-        self.intersect_with(&mut ctx, o, d, tmax)
+        self.intersect_with(&mut ctx, o, d, (tnear, tmax))
     }
 
     /// The closest hit `keep` accepts.
@@ -222,7 +240,7 @@ impl EmbreeScene {
             scene: self,
             visit: keep,
         };
-        self.intersect_with(&mut ctx.base, o, d, tmax)
+        self.intersect_with(&mut ctx.base, o, d, (0.0, tmax))
     }
 
     #[inline(always)]
@@ -231,10 +249,13 @@ impl EmbreeScene {
         ctx: &mut IntersectContext,
         o: Vec3A,
         d: Vec3A,
-        tmax: f32,
+        (tnear, tmax): (f32, f32),
     ) -> Option<Hit> {
         let mut rh = sys::RayHit {
-            ray: ray(o, d, tmax),
+            ray: sys::Ray {
+                tnear,
+                ..ray(o, d, tmax)
+            },
             hit: sys::Hit {
                 ng: [0.0; 3],
                 u: 0.0,

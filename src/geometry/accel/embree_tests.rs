@@ -283,3 +283,52 @@ fn crossings_match_obvhs() {
         assert!(differ * 1000 < rays.len(), "{differ} differ");
     }
 }
+
+/// Built without filter functions (for a scene that never asks for them), the searches
+/// that pass over shapes still answer: `intersect_where` by plain casts past the hits it
+/// refuses, the same hits as the filtered build's; the crossings as unsupported (the
+/// caller then casts once per crossing).
+#[test]
+fn without_filters_the_filtered_searches_fall_back() {
+    let g = scene();
+    let refs: Vec<&Geometry> = g.iter().collect();
+    let filtered = Accel::build_with(&refs, Backend::Embree);
+    let plain = Accel::build_filtered(&refs, Backend::Embree, false);
+    assert!(filtered.embree.as_ref().is_some_and(|e| e.filters));
+    assert!(plain.embree.as_ref().is_some_and(|e| !e.filters));
+    let pass = vec![ShadowPass::Passes; g.len()];
+    let mut list = CrossingList::new();
+    let mut past_refused = 0;
+    for (i, &(o, d, tmax)) in rays(&g, &filtered, 4000).iter().enumerate() {
+        // The big sphere mesh refused.
+        let keep = |s: u32| s != 0;
+        let a = filtered.intersect_where(&g, o, d, tmax, keep);
+        let b = plain.intersect_where(&g, o, d, tmax, keep);
+        let why = format!("ray {i}: {o} {d} {tmax}: filtered {a:?}, plain {b:?}");
+        match (a, b) {
+            (None, None) => {}
+            (Some(a), Some(b)) => {
+                assert!(keep(b.shape), "{why}");
+                assert!((a.t - b.t).abs() <= 1e-5 * a.t.max(1.0), "{why}");
+                assert!(
+                    a.prim == b.prim || (near_edge(&a) && near_edge(&b)),
+                    "{why}"
+                );
+                if plain
+                    .intersect(&g, o, d, tmax)
+                    .is_some_and(|h| h.shape == 0)
+                {
+                    past_refused += 1;
+                }
+            }
+            _ => panic!("{why}"),
+        }
+        let c = plain.crossings(&g, &pass, o, d, tmax, &mut list);
+        assert_eq!(c, Crossings::Unsupported, "ray {i}");
+    }
+    // The refused sphere stood in the way of many of the rays that found a hit past it.
+    assert!(
+        past_refused > 100,
+        "{past_refused} rays past the refused sphere"
+    );
+}

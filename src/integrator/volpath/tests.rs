@@ -55,7 +55,7 @@ fn scene_with(test: &str, cubes: bool, boxes: bool) -> Scene {
             }
         }
         let refs: Vec<_> = scene.geometries.iter().collect();
-        scene.accel = crate::geometry::accel::Accel::build(&refs);
+        scene.accel = crate::geometry::accel::Accel::build(&refs, true);
     }
     scene
 }
