@@ -130,10 +130,7 @@ pub fn sample_packet(
     let sky = V3::splat(ps.environment);
     // The scene's one medium where it is heterogeneous (`PacketScene::new` takes no
     // other with it).
-    let het = match ps.media.first() {
-        Some(m) if m.heterogeneous => scene.media[0].heterogeneous.as_deref(),
-        _ => None,
-    };
+    let het = scene.media.first().and_then(|m| m.heterogeneous.as_deref());
     let single_medium = (ps.media.len() == 1).then(|| {
         let m = &ps.media[0];
         MediumLanes {

@@ -88,81 +88,7 @@ impl HeterogeneousMedium {
         rng: &mut Pcg32,
     ) -> (Option<Collision>, Vec3) {
         let mut w = Vec3::ONE;
-        let Some((t0, t1)) = self.span(o, d, tmax) else {
-            return (None, w);
-        };
-        if self.majorant <= 0.0 {
-            return (None, w);
-        }
-        if let Some(grid) = &self.majorants {
-            return self.sample_flight_local(grid, (o, d), (t0, t1), rng);
-        }
-        let inv_major = 1.0 / self.majorant;
-        let mut t = t0;
-        loop {
-            t -= (1.0 - rng.next_1d()).ln() * inv_major;
-            if t >= t1 {
-                return (None, w);
-            }
-            let p = o + d * t;
-            let sigma_t = self.sigma_t_at(p);
-            let p_real = mean(sigma_t) * inv_major;
-            if rng.next_1d() < p_real {
-                w *= sigma_t / mean(sigma_t);
-                let albedo = self.albedo.eval(p);
-                return (Some(Collision { t, albedo }), w);
-            }
-            let sigma_n = Vec3::splat(self.majorant) - sigma_t;
-            let m = mean(sigma_n);
-            if m <= 0.0 {
-                return (None, Vec3::ZERO);
-            }
-            w *= sigma_n / m;
-        }
-    }
-
-    /// Ratio tracking: an unbiased estimate of `exp(−∫₀^dist σ_t)` from `o` along `d`.
-    pub fn transmittance(&self, o: Vec3A, d: Vec3A, dist: f32, rng: &mut Pcg32) -> Vec3 {
-        let mut tr = Vec3::ONE;
-        let Some((t0, t1)) = self.span(o, d, dist) else {
-            return tr;
-        };
-        if self.majorant <= 0.0 {
-            return tr;
-        }
-        if let Some(grid) = &self.majorants {
-            return self.transmittance_local(grid, (o, d), (t0, t1), rng);
-        }
-        let inv_major = 1.0 / self.majorant;
-        let mut t = t0;
-        loop {
-            t -= (1.0 - rng.next_1d()).ln() * inv_major;
-            if t >= t1 {
-                return tr;
-            }
-            let sigma_t = self.sigma_t_at(o + d * t);
-            tr *= (Vec3::splat(self.majorant) - sigma_t) * inv_major;
-            // Russian roulette once little is left (unbiased: survivors weigh 1/q).
-            let m = tr.max_element();
-            if m < 0.1 {
-                if m <= 0.0 || rng.next_1d() >= 0.5 {
-                    return Vec3::ZERO;
-                }
-                tr *= 2.0;
-            }
-        }
-    }
-
-    /// [`Self::sample_flight`] over [t0, t1] with the local majorants of `grid`.
-    fn sample_flight_local(
-        &self,
-        grid: &MajorantGrid,
-        (o, d): (Vec3A, Vec3A),
-        span: (f32, f32),
-        rng: &mut Pcg32,
-    ) -> (Option<Collision>, Vec3) {
-        let mut w = Vec3::ONE;
-        let end = self.walk_local(grid, o, d, span, rng, |t, major, rng| {
+        let end = self.track(o, d, tmax, rng, |t, major, rng| {
             let p = o + d * t;
             let sigma_t = self.sigma_t_at(p);
             if rng.next_1d() < mean(sigma_t) / major {
@@ -182,17 +108,12 @@ impl HeterogeneousMedium {
         (end.flatten(), w)
     }
 
-    /// [`Self::transmittance`] over [t0, t1] with the local majorants of `grid`.
-    fn transmittance_local(
-        &self,
-        grid: &MajorantGrid,
-        (o, d): (Vec3A, Vec3A),
-        span: (f32, f32),
-        rng: &mut Pcg32,
-    ) -> Vec3 {
+    /// Ratio tracking: an unbiased estimate of `exp(−∫₀^dist σ_t)` from `o` along `d`.
+    pub fn transmittance(&self, o: Vec3A, d: Vec3A, dist: f32, rng: &mut Pcg32) -> Vec3 {
         let mut tr = Vec3::ONE;
-        let ended = self.walk_local(grid, o, d, span, rng, |t, major, rng| {
+        let ended = self.track(o, d, dist, rng, |t, major, rng| {
             tr *= (Vec3::splat(major) - self.sigma_t_at(o + d * t)) / major;
+            // Russian roulette once little is left (unbiased: survivors weigh 1/q).
             let m = tr.max_element();
             if m < 0.1 {
                 if m <= 0.0 || rng.next_1d() >= 0.5 {
@@ -206,6 +127,36 @@ impl HeterogeneousMedium {
             Vec3::ZERO
         } else {
             tr
+        }
+    }
+
+    /// Tentative collisions along `o + t d` within the span up to `tmax`, at the local
+    /// majorants where there are some, else at the global one: `collide(t, σ̄, rng)`
+    /// decides at each; the tracking ends with its answer, or None past the span.
+    fn track<T>(
+        &self,
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+        rng: &mut Pcg32,
+        mut collide: impl FnMut(f32, f32, &mut Pcg32) -> Option<T>,
+    ) -> Option<T> {
+        let (t0, t1) = self.span(o, d, tmax)?;
+        if self.majorant <= 0.0 {
+            return None;
+        }
+        if let Some(grid) = &self.majorants {
+            return self.walk_local(grid, o, d, (t0, t1), rng, collide);
+        }
+        let mut t = t0;
+        loop {
+            t += optical_depth(rng) / self.majorant;
+            if t >= t1 {
+                return None;
+            }
+            if let Some(answer) = collide(t, self.majorant, rng) {
+                return Some(answer);
+            }
         }
     }
 

@@ -89,11 +89,8 @@ pub struct Surface {
 /// A medium's extinction and phase function (the albedo is the render's).
 #[derive(Clone, Copy, Debug)]
 pub struct PacketMedium {
-    /// (Unused where `heterogeneous`.)
+    /// (Unused where the scene's medium is heterogeneous: tracked instead.)
     pub sigma_t: Vec3,
-    /// A `heterogeneous` medium (or a homogeneous one with a volume albedo): its free
-    /// flights by delta tracking, its shadow rays by ratio tracking.
-    pub heterogeneous: bool,
     /// Henyey–Greenstein's g (0: isotropic).
     pub g: f32,
 }
@@ -309,7 +306,6 @@ impl PacketScene {
             };
             media.push(PacketMedium {
                 sigma_t: m.sigma_t,
-                heterogeneous: m.heterogeneous.is_some(),
                 g,
             });
         }

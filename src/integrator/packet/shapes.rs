@@ -223,10 +223,7 @@ pub fn shadow_transmittance(
             blocked |= from_inside | (span.enters & span.near.cmp_lt(dist));
             continue;
         }
-        let medium = &ps.media[m.medium as usize];
-        if medium.heterogeneous {
-            let h = scene.media[m.medium as usize].heterogeneous.as_deref();
-            let h = h.expect("a packet medium marked heterogeneous is one");
+        if let Some(h) = scene.media[m.medium as usize].heterogeneous.as_deref() {
             let from_outside = span.enters & span.near.cmp_lt(dist);
             let start = from_inside.blend(L::ZERO, span.near);
             let end = from_inside.blend(span.exit, span.far).min(dist);
@@ -246,7 +243,8 @@ pub fn shadow_transmittance(
         let through = (span.far.min(dist) - span.near.min(dist)).max(L::ZERO);
         let len = from_inside.blend(span.exit.min(dist), span.enters.blend(through, L::ZERO));
         if len.cmp_gt(L::ZERO).any() {
-            tr = tr.mul(V3::transmittance(V3::splat(medium.sigma_t), len));
+            let sigma_t = ps.media[m.medium as usize].sigma_t;
+            tr = tr.mul(V3::transmittance(V3::splat(sigma_t), len));
         }
     }
     tr.select(blocked, V3::splat(Vec3::ZERO))
