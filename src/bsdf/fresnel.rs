@@ -4,30 +4,31 @@
 
 use glam::Vec3A;
 
+use crate::simd::Float;
+
 /// Unpolarized Fresnel reflectance. Returns (R, cos θ_t, η_it, η_ti), with cos θ_t signed
-/// opposite to cos θ_i, exactly as Mitsuba's `fresnel(cos_theta_i, eta)`.
-pub fn fresnel(cos_theta_i: f32, eta: f32) -> (f32, f32, f32, f32) {
-    let outside = cos_theta_i >= 0.0;
-    let (eta_it, eta_ti) = if outside {
-        (eta, 1.0 / eta)
-    } else {
-        (1.0 / eta, eta)
-    };
-    let cos_t_sqr = 1.0 - (1.0 - cos_theta_i * cos_theta_i) * eta_ti * eta_ti;
+/// opposite to cos θ_i, exactly as Mitsuba's `fresnel(cos_theta_i, eta)`: with
+/// a_s = (cos θ_i − η_it cos θ_t) / (cos θ_i + η_it cos θ_t) and
+/// a_p = (cos θ_t − η_it cos θ_i) / (cos θ_t + η_it cos θ_i), R = (a_s² + a_p²) / 2.
+/// One definition for a path and for lanes of paths (every branch a select).
+#[inline(always)]
+pub fn fresnel<F: Float>(cos_theta_i: F, eta: F) -> (F, F, F, F) {
+    let (zero, one) = (F::zero(), F::one());
+    let outside = cos_theta_i.ge(zero);
+    let eta_it = F::select(outside, eta, one / eta);
+    let eta_ti = F::select(outside, one / eta, eta);
+    let cos_t_sqr = one - (one - cos_theta_i * cos_theta_i) * eta_ti * eta_ti;
     let ci = cos_theta_i.abs();
-    let ct = cos_t_sqr.max(0.0).sqrt();
-    let r = if eta == 1.0 {
-        0.0
-    } else if ci == 0.0 {
-        1.0
-    } else {
-        let a_s = (ci - eta_it * ct) / (ci + eta_it * ct);
-        let a_p = (ct - eta_it * ci) / (ct + eta_it * ci);
-        0.5 * (a_s * a_s + a_p * a_p)
-    };
-    // Total internal reflection gives cos_t_sqr < 0: then r = 1 by the formulas above.
-    let r = if cos_t_sqr <= 0.0 { 1.0 } else { r };
-    let cos_theta_t = if cos_theta_i >= 0.0 { -ct } else { ct };
+    let ct = cos_t_sqr.max(zero).sqrt();
+    let a_s = (ci - eta_it * ct) / (ci + eta_it * ct);
+    let a_p = (ct - eta_it * ci) / (ct + eta_it * ci);
+    let r = F::of(0.5) * (a_s * a_s + a_p * a_p);
+    // At grazing incidence (ci = 0) the quotients are 0/0: R = 1. No interface, no
+    // reflection. Total internal reflection gives cos_t_sqr < 0: R = 1.
+    let r = F::select(ci.eq(zero), one, r);
+    let r = F::select(eta.eq(one), zero, r);
+    let r = F::select(cos_t_sqr.le(zero), one, r);
+    let cos_theta_t = F::select(outside, -ct, ct);
     (r, cos_theta_t, eta_it, eta_ti)
 }
 

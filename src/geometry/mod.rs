@@ -10,6 +10,8 @@ pub mod shape;
 
 use glam::Vec3A;
 
+use crate::simd::{Float, Vector3};
+
 /// Mitsuba 3's ray epsilon for single precision (`math::RayEpsilon<float>` =
 /// `Epsilon * 1500`, `Epsilon` = 2⁻²⁴): spawned rays are offset by this much, scaled by
 /// the magnitude of the point, along the normal.
@@ -63,15 +65,47 @@ pub struct Frame {
     pub n: Vec3A,
 }
 
+/// The two tangents (s, t) of Duff et al.'s branchless orthonormal basis around the unit
+/// `n` ("Building an Orthonormal Basis, Revisited", 2017, Listing 3), for a path or for
+/// lanes of paths.
+#[inline(always)]
+pub fn coordinate_system<F: Float>(n: Vector3<F>) -> (Vector3<F>, Vector3<F>) {
+    let one = F::one();
+    let sign = one.copysign(n.z);
+    let a = -one / (sign + n.z);
+    let b = n.x * n.y * a;
+    let s = Vector3::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let t = Vector3::new(b, sign + n.y * n.y * a, -n.y);
+    (s, t)
+}
+
+/// `local` (in the frame of [`coordinate_system`] around the unit `n`) in world space:
+/// s x + t y + n z.
+#[inline(always)]
+pub fn to_world<F: Float>(n: Vector3<F>, local: Vector3<F>) -> Vector3<F> {
+    let (s, t) = coordinate_system(n);
+    s.scale(local.x).add(t.scale(local.y)).add(n.scale(local.z))
+}
+
+/// The direction at cos θ, sin θ from the unit `n` and azimuth 2π `u`.
+#[inline(always)]
+pub fn around<F: Float>(n: Vector3<F>, cos_theta: F, sin_theta: F, u: F) -> Vector3<F> {
+    let (sin_phi, cos_phi) = (F::of((2.0 * std::f32::consts::PI) as f64) * u).sin_cos();
+    to_world(
+        n,
+        Vector3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta),
+    )
+}
+
 impl Frame {
     #[inline]
     pub fn new(n: Vec3A) -> Self {
-        let sign = 1.0f32.copysign(n.z);
-        let a = -1.0 / (sign + n.z);
-        let b = n.x * n.y * a;
-        let s = Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-        let t = Vec3A::new(b, sign + n.y * n.y * a, -n.y);
-        Frame { s, t, n }
+        let (s, t) = coordinate_system(n.into());
+        Frame {
+            s: s.into(),
+            t: t.into(),
+            n,
+        }
     }
 
     /// The frame around `n` whose first axis is the tangent `dp_du` made orthogonal to

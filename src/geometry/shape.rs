@@ -6,6 +6,7 @@ use glam::{Mat3A, Mat4, Vec2, Vec3A};
 use super::mesh::TriangleMesh;
 use super::Bounds;
 use crate::sampling::warp::{square_to_uniform_disk_concentric, square_to_uniform_sphere};
+use crate::simd::{Float, Vector3};
 
 /// Mitsuba's `sphere`: center + radius (after `to_world`, which must be a similarity).
 #[derive(Clone, Debug)]
@@ -118,9 +119,69 @@ pub struct ConeSample {
 }
 
 /// Uniform pdf over a cone of half-angle θ_max.
-#[inline]
-fn cone_pdf(cos_max: f32) -> f32 {
-    1.0 / (2.0 * std::f32::consts::PI * (1.0 - cos_max))
+#[inline(always)]
+fn cone_pdf<F: Float>(cos_max: F) -> F {
+    F::one() / (F::of((2.0 * std::f32::consts::PI) as f64) * (F::one() - cos_max))
+}
+
+/// A direction toward a sphere from [`sample_sphere_cone`], for a path or lanes of paths.
+pub struct ConeDirection<F: Float> {
+    /// Unit direction from the reference point.
+    pub d: Vector3<F>,
+    /// Distance to where it meets the sphere.
+    pub dist: F,
+    /// Solid-angle pdf.
+    pub pdf: F,
+    /// Where the reference point is inside the sphere (deeper than the ray epsilon):
+    /// no cone, the rest is meaningless there.
+    pub inside: F::Mask,
+}
+
+/// A direction uniform in the cone of the cap of the sphere (`center`, `radius`) visible
+/// from `p`, pdf 1 / (2π (1 − cos θ_max)), and the distance to the nearer root,
+///   t = (|c|² − r²) / (|c| cos θ + √(r² − |c|² sin² θ)),   c = center − p,
+/// the product of the roots over the larger one, so that nothing cancels. Small cones
+/// (sin² θ_max below Mitsuba's 1.5° threshold) take sin² θ = sin² θ_max u1 instead of
+/// 1 − cos² θ (the Taylor expansion, as Mitsuba).
+///
+/// Mitsuba draws the point on the sphere (by its angle at the centre) and the
+/// direction toward it after; here the direction comes first and the point is where
+/// it meets the sphere: the same distribution, with fewer square roots and
+/// divisions one after the other (this was 15% of the render time of a fog lit by a
+/// sphere).
+#[inline(always)]
+pub fn sample_sphere_cone<F: Float>(
+    center: Vector3<F>,
+    radius: f32,
+    p: Vector3<F>,
+    u1: F,
+    u2: F,
+) -> ConeDirection<F> {
+    let (zero, one) = (F::zero(), F::one());
+    let c = center.sub(p);
+    let dc2 = c.dot(c);
+    // Mitsuba shrinks the radius by RayEpsilon: points on the surface count as outside
+    // (a vertex on the light sees the hemisphere it fills).
+    let r_adj = radius * (1.0 - super::RAY_EPSILON);
+    let inside = dc2.le(F::of((r_adj * r_adj) as f64));
+    let r2 = F::of((radius * radius) as f64);
+    let sin2_max = r2 / dc2;
+    let cos_max = (one - sin2_max).max(zero).sqrt();
+    let wide_cone = sin2_max.gt(F::of(0.000_685_23f32 as f64));
+    let cos_wide = (cos_max - one) * u1 + one;
+    let sin2_small = sin2_max * u1;
+    let cos_t = F::select(wide_cone, cos_wide, (one - sin2_small).sqrt());
+    let sin2 = F::select(wide_cone, (one - cos_wide * cos_wide).max(zero), sin2_small);
+    let dc_len = dc2.sqrt();
+    let d = super::around(c.div(dc_len), cos_t, sin2.sqrt(), u2);
+    let half_chord = (r2 - dc2 * sin2).max(zero).sqrt();
+    let dist = (dc2 - r2) / (dc_len * cos_t + half_chord);
+    ConeDirection {
+        d,
+        dist,
+        pdf: cone_pdf(cos_max),
+        inside,
+    }
 }
 
 impl Sphere {
@@ -200,44 +261,22 @@ impl Sphere {
     }
 
     /// Mitsuba's `Sphere::sample_direction` from outside: a direction uniform in the cone
-    /// of the visible cap (pdf `1 / (2π (1 − cos θ_max))`), and the point it hits.
-    /// Returns the sample, or `None` from inside.
-    ///
-    /// Mitsuba draws the point on the sphere (by its angle at the centre) and the
-    /// direction toward it after; here the direction comes first and the point is where
-    /// it meets the sphere: the same distribution, with fewer square roots and
-    /// divisions one after the other (this was 15% of the render time of a fog lit by a
-    /// sphere).
+    /// of the visible cap (pdf `1 / (2π (1 − cos θ_max))`), and the point it hits
+    /// ([`sample_sphere_cone`]). Returns the sample, or `None` from inside.
     #[inline]
     pub fn sample_cone(&self, p_ref: Vec3A, s: Vec2) -> Option<ConeSample> {
-        let (cos_max, sin2_max) = self.cone_cos_max(p_ref)?;
-        let dc = self.center - p_ref;
-        let dc2 = dc.length_squared();
-        let dc_len = dc2.sqrt();
-        // cos θ uniform in [cos θ_max, 1]. Small cones: the Taylor expansion avoids the
-        // cancellation in 1 − cos² (Mitsuba's, below 1.5°).
-        let (cos_t, sin2) = if sin2_max > 0.000_685_23 {
-            let c = (cos_max - 1.0) * s.x + 1.0;
-            (c, (1.0 - c * c).max(0.0))
-        } else {
-            let sin2 = sin2_max * s.x;
-            ((1.0 - sin2).sqrt(), sin2)
-        };
-        let sin_t = sin2.sqrt();
-        let (sp, cp) = (2.0 * std::f32::consts::PI * s.y).sin_cos();
-        let d = super::Frame::new(dc / dc_len).to_world(Vec3A::new(cp * sin_t, sp * sin_t, cos_t));
-        // The nearer root of |p_ref + t d − c|² = r²: t = |dc| cos θ − √(r² − |dc|² sin² θ),
-        // written by the product of the roots (|dc|² − r²) so that nothing cancels.
-        let r2 = self.radius * self.radius;
-        let half_chord = (r2 - dc2 * sin2).max(0.0).sqrt();
-        let dist = (dc2 - r2) / (dc_len * cos_t + half_chord);
-        let p = p_ref + d * dist;
+        let c = sample_sphere_cone(self.center.into(), self.radius, p_ref.into(), s.x, s.y);
+        if c.inside {
+            return None;
+        }
+        let d = Vec3A::from(c.d);
+        let p = p_ref + d * c.dist;
         Some(ConeSample {
             d,
-            dist,
+            dist: c.dist,
             p,
             n: (p - self.center).normalize(),
-            pdf: cone_pdf(cos_max),
+            pdf: c.pdf,
         })
     }
 

@@ -9,6 +9,7 @@ pub mod gradient;
 pub mod packet;
 pub mod path;
 pub mod render;
+pub mod roulette;
 pub mod sample;
 pub mod volpath;
 

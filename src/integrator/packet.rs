@@ -45,9 +45,14 @@ mod shapes;
 use glam::{Vec3, Vec3A};
 use wide::{CmpEq, CmpGe, CmpGt, CmpLt};
 
+use super::roulette::continue_probability;
 use super::sample::PathSample;
 use crate::geometry::RAY_EPSILON;
-use crate::sampling::Pcg32;
+use crate::medium::phase::hg_eval;
+use crate::medium::{
+    collision_weight, expected_pass_weight, pass_weight, sample_distance, transmittance_rgb,
+};
+use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
 use boundary::boundary_sample;
 use emitters::sample_emitters;
@@ -158,9 +163,7 @@ pub fn sample_packet(
             } else {
                 beta
             };
-            let w = weight.max_element();
-            let w = w.cmp_gt(L::ZERO).blend(w, d_beta.abs().max_element());
-            let q = (w * eta * eta).min(L::splat(0.95));
+            let q = continue_probability(weight, d_beta, eta);
             // A NaN q fails u < q: the path ends, as the scalar one does.
             let ended = played & !u.cmp_lt(q);
             alive &= !ended;
@@ -231,8 +234,8 @@ pub fn sample_packet(
                         (depth, specular),
                         (last_p, last_pdf),
                     );
-                    let tr = V3::transmittance(m.sigma, t_end);
-                    let pass = tr.scale(hero_of(tr) / r_u.mul(tr).mean());
+                    let tr = transmittance_rgb(m.sigma, t_end);
+                    let pass = expected_pass_weight(tr, hero_of(tr), r_u);
                     let x = pass.mul(le);
                     let finite = ahead & x.is_finite();
                     result = result.select(finite, result.add(beta.mul(x)));
@@ -252,17 +255,16 @@ pub fn sample_packet(
                 }
                 None => {
                     let u = draw_1d(in_medium, rngs);
-                    let flight = -(L::ONE - u).ln() / m.sigma_hero;
-                    let flight = m.sigma_hero.cmp_gt(L::ZERO).blend(flight, inf);
+                    let flight = sample_distance(m.sigma_hero, u);
                     let collided = in_medium & flight.cmp_lt(t_end);
                     if !ps.grey {
                         // Collision at t: f = T σ_t α, p_c = σ_t,c T_c; passing to the
                         // end: f = T, p_c = T_c (volpath's chromatic weights).
                         let t = collided.blend(flight, t_end);
-                        let tr = V3::transmittance(m.sigma, t);
+                        let tr = transmittance_rgb(m.sigma, t);
                         let tr_hero = hero_of(tr);
-                        let w_collided = tr.mul(m.sigma).div(m.sigma_hero * tr_hero);
-                        let w_passed = tr.div(tr_hero);
+                        let w_collided = collision_weight(tr, m.sigma, m.sigma_hero, tr_hero);
+                        let w_passed = pass_weight(tr, tr_hero);
                         let w = w_passed.select(collided, w_collided);
                         beta = beta.select(in_medium, beta.mul(w));
                         d_beta = d_beta.select(in_medium, d_beta.mul(w));
@@ -302,7 +304,7 @@ pub fn sample_packet(
                 if ps.samples_emitters && nee.any() {
                     let es = sample_emitters(scene, ps, p, nee, rngs);
                     if es.some.any() {
-                        let phase = scatter::eval_hg(m.g, d.dot(es.d));
+                        let phase = hg_eval(m.g, d.dot(es.d));
                         let ray = (p, es.d, es.dist);
                         let tr = shadow_transmittance(scene, ps, ray, inside, none, es.some, rngs);
                         let x = es.value.mul(tr).scale(phase * es.weight(phase));
@@ -320,7 +322,7 @@ pub fn sample_packet(
                 let wo = scatter::sample_hg(d, m.g, u1, u2);
                 if ps.area_emitters {
                     last_p = last_p.select(collided, p);
-                    last_pdf = collided.blend(scatter::eval_hg(m.g, d.dot(wo)), last_pdf);
+                    last_pdf = collided.blend(hg_eval(m.g, d.dot(wo)), last_pdf);
                 }
                 o = o.select(collided, p);
                 d = d.select(collided, wo);
@@ -505,7 +507,7 @@ fn surface_emission(
             let from = last_p.lane_a(k);
             let (l, pdf) = e.eval_and_pdf(from, pk, nk, dk, &scene.geometries);
             let em_pdf = pdf * scene.emitter_selection.pdf(from, ei as usize);
-            l * crate::sampling::mis_weight(last_pdf[k], em_pdf)
+            l * mis_weight(last_pdf[k], em_pdf)
         };
     }
     V3::from_fn(|k| le[k])

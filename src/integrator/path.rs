@@ -9,10 +9,12 @@
 use glam::{Vec3, Vec3A};
 
 use super::emitters::{sample_light_at_surface, skip_emitters};
+use super::roulette::continue_probability;
 use super::sample::PathSample;
 use crate::geometry::offset_point;
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
+use crate::simd::Vector3;
 
 /// Where the previous bounce happened, for MIS of emitter hits.
 #[derive(Clone, Copy)]
@@ -120,7 +122,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
 
         // ---- Russian roulette ----
         let tmax_c = throughput.max_element();
-        let rr_prob = (tmax_c * eta * eta).min(0.95);
+        let rr_prob = continue_probability(throughput.into(), Vector3::all(0.0), eta);
         if depth >= s.rr_depth {
             // Drawn only where played, as in volpath (the first draws are stratified).
             if rng.next_1d() >= rr_prob {

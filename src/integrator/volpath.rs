@@ -52,11 +52,14 @@
 use glam::{Vec3, Vec3A};
 
 use super::emitters::{sample_light_at_surface, skip_emitters};
+use super::roulette::continue_probability;
 use super::sample::PathSample;
 use crate::bsdf::Bsdf;
 use crate::geometry::accel::{Crossing, CrossingList, Crossings};
 use crate::geometry::{offset_point, SHADOW_EPSILON};
-use crate::medium::{transmittance, HomogeneousMedium};
+use crate::medium::{
+    collision_weight, expected_pass_weight, pass_weight, transmittance, HomogeneousMedium,
+};
 use crate::sampling::mis_weight;
 use crate::sampling::Pcg32;
 use crate::scene::{Scene, ShapeInfo, SurfaceInteraction};
@@ -412,11 +415,7 @@ pub fn sample(
                 Gradient::Difference { .. } => beta + d_beta,
                 _ => beta,
             };
-            let w = match roulette_weight.max_element() {
-                b if b > 0.0 => b,
-                _ => d_beta.abs().max_element(),
-            };
-            let q = (w * eta * eta).min(0.95);
+            let q = continue_probability(roulette_weight.into(), d_beta.into(), eta);
             if q.is_nan() || u_rr >= q {
                 break;
             }
@@ -491,7 +490,8 @@ pub fn sample(
                         let le = emission_seen(scene, Some(h), ray_d, depth, specular_chain, &last);
                         if le != Vec3::ZERO {
                             let tr = m.transmittance(h.t);
-                            let pass = tr * (tr[hero] / mean(r_u * tr));
+                            let pass: Vec3 =
+                                expected_pass_weight(tr.into(), tr[hero], r_u.into()).into();
                             if pass.is_finite() {
                                 result += beta * pass * le;
                                 d_result += d_beta * pass * le;
@@ -522,7 +522,7 @@ pub fn sample(
                         Some(h) => {
                             // Passed the whole segment: f = T, p_c = T_c.
                             let tr = m.transmittance(h.t);
-                            let w = tr / tr[hero];
+                            let w: Vec3 = pass_weight(tr.into(), tr[hero]).into();
                             beta *= w;
                             d_beta *= w;
                             r_u *= w;
@@ -530,8 +530,13 @@ pub fn sample(
                         None if collided => {
                             // Collision at t: f = T σ_t α, p_c = σ_t,c T_c.
                             let tr = m.transmittance(t);
-                            let p_hero = m.sigma_t[hero] * tr[hero];
-                            let w = tr * m.sigma_t / p_hero;
+                            let w: Vec3 = collision_weight(
+                                tr.into(),
+                                m.sigma_t.into(),
+                                m.sigma_t[hero],
+                                tr[hero],
+                            )
+                            .into();
                             // d(β w α)/dα = dβ w α + β w in the chosen medium.
                             d_beta_before = d_beta * w * albedo;
                             let (a, b) = settings.gradient.vertex_factors(mi, albedo);
@@ -543,7 +548,7 @@ pub fn sample(
                         None => {
                             // Left through the far end of the ray without a collision.
                             let tr = m.transmittance(ray_tmax);
-                            let w = tr / tr[hero];
+                            let w: Vec3 = pass_weight(tr.into(), tr[hero]).into();
                             beta *= w;
                             d_beta *= w;
                             r_u *= w;

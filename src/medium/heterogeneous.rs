@@ -30,6 +30,7 @@ use glam::{Vec3, Vec3A};
 use super::grid::Volume;
 use super::majorant::{self, MajorantGrid};
 use crate::sampling::Pcg32;
+use crate::simd::{Float, Vector3};
 
 #[derive(Clone, Debug)]
 pub struct HeterogeneousMedium {
@@ -90,19 +91,18 @@ impl HeterogeneousMedium {
         let mut w = Vec3::ONE;
         let end = self.track(o, d, tmax, rng, |t, major, rng| {
             let p = o + d * t;
-            let sigma_t = self.sigma_t_at(p);
-            if rng.next_1d() < mean(sigma_t) / major {
-                w *= sigma_t / mean(sigma_t);
+            let sigma_t = self.sigma_t_at(p).into();
+            if rng.next_1d() < real_probability(sigma_t, major) {
+                w *= Vec3::from(real_weight(sigma_t));
                 let albedo = self.albedo.eval(p);
                 return Some(Some(Collision { t, albedo }));
             }
-            let sigma_n = Vec3::splat(major) - sigma_t;
-            let m = mean(sigma_n);
-            if m <= 0.0 {
+            let (weight, stuck) = null_weight(sigma_t, major);
+            if stuck {
                 w = Vec3::ZERO;
                 return Some(None);
             }
-            w *= sigma_n / m;
+            w *= Vec3::from(weight);
             None
         });
         (end.flatten(), w)
@@ -112,14 +112,14 @@ impl HeterogeneousMedium {
     pub fn transmittance(&self, o: Vec3A, d: Vec3A, dist: f32, rng: &mut Pcg32) -> Vec3 {
         let mut tr = Vec3::ONE;
         let ended = self.track(o, d, dist, rng, |t, major, rng| {
-            tr *= (Vec3::splat(major) - self.sigma_t_at(o + d * t)) / major;
+            tr *= Vec3::from(ratio_weight(self.sigma_t_at(o + d * t).into(), major));
             // Russian roulette once little is left (unbiased: survivors weigh 1/q).
-            let m = tr.max_element();
-            if m < 0.1 {
-                if m <= 0.0 || rng.next_1d() >= 0.5 {
-                    return Some(());
-                }
-                tr *= 2.0;
+            let (play, end) = ratio_roulette(tr.max_element());
+            if end || play && rng.next_1d() >= RATIO_SURVIVAL {
+                return Some(());
+            }
+            if play {
+                tr *= 1.0 / RATIO_SURVIVAL;
             }
             None
         });
@@ -150,7 +150,7 @@ impl HeterogeneousMedium {
         }
         let mut t = t0;
         loop {
-            t += optical_depth(rng) / self.majorant;
+            t = next_tentative(t, rng.next_1d(), self.majorant);
             if t >= t1 {
                 return None;
             }
@@ -203,12 +203,63 @@ impl HeterogeneousMedium {
 /// collision in units of 1 / σ̄.
 #[inline]
 fn optical_depth(rng: &mut Pcg32) -> f32 {
-    -(1.0 - rng.next_1d()).ln()
+    optical_depth_of(rng.next_1d())
 }
 
-#[inline]
-fn mean(v: Vec3) -> f32 {
-    (v.x + v.y + v.z) * (1.0 / 3.0)
+/// −ln(1 − u) for a path or lanes of paths (as `medium::sample_distance` at σ = 1).
+#[inline(always)]
+pub fn optical_depth_of<F: Float>(u: F) -> F {
+    -(F::one() - u).ln()
+}
+
+/// The next tentative collision after `t` at majorant σ̄, from uniform `u`.
+#[inline(always)]
+pub fn next_tentative<F: Float>(t: F, u: F, major: F) -> F {
+    t + optical_depth_of(u) / major
+}
+
+/// The probability that a tentative collision at σ_t is real: P = mean(σ_t) / σ̄
+/// (the spectral mixture of the channels' σ_t,c / σ̄).
+#[inline(always)]
+pub fn real_probability<F: Float>(sigma_t: Vector3<F>, major: F) -> F {
+    sigma_t.mean() / major
+}
+
+/// A real collision's weight per channel, σ_t / mean(σ_t) (the albedo apart).
+#[inline(always)]
+pub fn real_weight<F: Float>(sigma_t: Vector3<F>) -> Vector3<F> {
+    sigma_t.div(sigma_t.mean())
+}
+
+/// A null collision's weight per channel, σ_n / mean(σ_n) with σ_n = σ̄ − σ_t, and
+/// where no null collision can happen (σ_n = 0 in every channel: σ_t at the majorant):
+/// the flight then passes with weight 0.
+#[inline(always)]
+pub fn null_weight<F: Float>(sigma_t: Vector3<F>, major: F) -> (Vector3<F>, F::Mask) {
+    let sigma_n = Vector3::all(major).sub(sigma_t);
+    let m = sigma_n.mean();
+    (sigma_n.div(m), m.le(F::zero()))
+}
+
+/// Ratio tracking's factor at a tentative collision: σ_n / σ̄ per channel.
+#[inline(always)]
+pub fn ratio_weight<F: Float>(sigma_t: Vector3<F>, major: F) -> Vector3<F> {
+    Vector3::all(major).sub(sigma_t).div(major)
+}
+
+/// Below this largest channel, ratio tracking plays Russian roulette.
+pub const RATIO_ROULETTE_BELOW: f32 = 0.1;
+/// The probability a rouletted ratio-tracking estimate goes on (it then weighs 1/q).
+pub const RATIO_SURVIVAL: f32 = 0.5;
+
+/// Ratio tracking's Russian roulette once its estimate's largest channel `m` is below
+/// [`RATIO_ROULETTE_BELOW`]: where something is left a draw decides (`play`), where
+/// nothing is the estimate ends at 0 (`end`); elsewhere it goes on with no draw.
+#[inline(always)]
+pub fn ratio_roulette<F: Float>(m: F) -> (F::Mask, F::Mask) {
+    let low = m.lt(F::of(RATIO_ROULETTE_BELOW as f64));
+    let left = m.gt(F::zero());
+    (low & left, low & !left)
 }
 
 #[cfg(test)]

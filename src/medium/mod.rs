@@ -16,6 +16,8 @@ pub mod phase;
 
 use glam::Vec3;
 
+use crate::simd::{Float, Vector3};
+
 pub use heterogeneous::HeterogeneousMedium;
 pub use phase::Phase;
 
@@ -57,15 +59,7 @@ impl HomogeneousMedium {
     /// extinction is 0: the ray never collides).
     #[inline]
     pub fn sample_distance(&self, channel: usize, u: f32) -> f32 {
-        let s = self.sigma_t[channel];
-        if s > 0.0 {
-            // u < 1, so t is finite. The sampler's u are multiples of 2^-23, for which
-            // 1 − u is exact in f32: ln(1 − u) is then as accurate as ln_1p(−u), and
-            // libm's logf is several times faster than its log1pf.
-            -(1.0 - u).ln() / s
-        } else {
-            f32::INFINITY
-        }
+        sample_distance(self.sigma_t[channel], u)
     }
 
     /// Beer–Lambert transmittance over a length `t` (t may be ∞: 0 where σ_t > 0,
@@ -76,17 +70,70 @@ impl HomogeneousMedium {
     }
 }
 
-/// `e^{−σ t}` per channel, with `0 · ∞ = 0` (no extinction, no attenuation). A grey
-/// σ_t (most media) takes one exponential, not three: `expf` was 8% of a furnace
-/// profile.
+/// A free-flight distance at extinction σ from uniform `u` (inverting the CDF
+/// 1 − e^{−σ t}): t = −ln(1 − u) / σ, ∞ where σ = 0 (the ray never collides).
+///
+/// u < 1, so t is finite. The sampler's u are multiples of 2^-23, for which 1 − u is
+/// exact in f32: ln(1 − u) is then as accurate as ln_1p(−u), and libm's logf is several
+/// times faster than its log1pf.
+#[inline(always)]
+pub fn sample_distance<F: Float>(sigma: F, u: F) -> F {
+    let t = -(F::one() - u).ln() / sigma;
+    F::select(sigma.gt(F::zero()), t, F::of(f64::INFINITY))
+}
+
+/// e^{−σ t} (Beer–Lambert), with `0 · ∞ = 0`: no extinction, no attenuation, at any t.
+#[inline(always)]
+pub fn transmittance_at<F: Float>(sigma: F, t: F) -> F {
+    F::select(sigma.gt(F::zero()), (-sigma * t).exp(), F::one())
+}
+
+/// `e^{−σ t}` per channel ([`transmittance_at`]). A grey σ_t (most media) takes one
+/// exponential, not three: `expf` was 8% of a furnace profile.
 #[inline]
 pub fn transmittance(sigma_t: Vec3, t: f32) -> Vec3 {
-    let f = |s: f32| if s > 0.0 { (-s * t).exp() } else { 1.0 };
     if sigma_t.x == sigma_t.y && sigma_t.y == sigma_t.z {
-        Vec3::splat(f(sigma_t.x))
+        Vec3::splat(transmittance_at(sigma_t.x, t))
     } else {
-        Vec3::new(f(sigma_t.x), f(sigma_t.y), f(sigma_t.z))
+        transmittance_rgb(sigma_t.into(), t).into()
     }
+}
+
+/// `e^{−σ t}` per channel, for a path or lanes of paths.
+#[inline(always)]
+pub fn transmittance_rgb<F: Float>(sigma_t: Vector3<F>, t: F) -> Vector3<F> {
+    Vector3::new(
+        transmittance_at(sigma_t.x, t),
+        transmittance_at(sigma_t.y, t),
+        transmittance_at(sigma_t.z, t),
+    )
+}
+
+/// The hero channel's free-flight weights (volpath's module comment): a flight sampled
+/// with σ_t of the hero channel h, transmittance T, weighs f / p_h per channel.
+/// A collision at t: f = T σ_t (α apart), p_h = σ_t,h T_h.
+#[inline(always)]
+pub fn collision_weight<F: Float>(
+    tr: Vector3<F>,
+    sigma_t: Vector3<F>,
+    sigma_hero: F,
+    tr_hero: F,
+) -> Vector3<F> {
+    tr.mul(sigma_t).div(sigma_hero * tr_hero)
+}
+
+/// Passing a whole segment: f = T, p_h = T_h (the other half of [`collision_weight`]).
+#[inline(always)]
+pub fn pass_weight<F: Float>(tr: Vector3<F>, tr_hero: F) -> Vector3<F> {
+    tr.div(tr_hero)
+}
+
+/// The weight of an emitter at a segment's end counted in expectation (volpath's module
+/// comment): the flight passes to it with probability T_h and then weighs β T / mean(r T),
+/// so the path counts β T (T_h / mean(r T)) L_e at once.
+#[inline(always)]
+pub fn expected_pass_weight<F: Float>(tr: Vector3<F>, tr_hero: F, r: Vector3<F>) -> Vector3<F> {
+    tr.scale(tr_hero / r.mul(tr).mean())
 }
 
 #[cfg(test)]

@@ -21,29 +21,29 @@ use std::f32::consts::PI;
 
 use glam::{Vec2, Vec3A};
 
-use crate::geometry::Frame;
+use crate::geometry::around;
+use crate::simd::{Float, Vector3};
 
-/// p_HG in double precision. 1 + g² − 2g cos = (1 − |g|)² + 2|g| w, with w = 1 ∓ cos θ
-/// the distance from the peak (cos θ = ±1 for g ≷ 0): both terms are ≥ 0, so there is no
-/// cancellation in the peak, which near |g| = 1 is only ~(1 − |g|)² wide in w.
-#[inline]
-fn hg(g: f64, cos_theta: f64) -> f64 {
+/// p_HG(cos θ). 1 + g² − 2g cos = (1 − |g|)² + 2|g| w, with w = 1 ∓ cos θ the distance
+/// from the peak (cos θ = ±1 for g ≷ 0): both terms are ≥ 0, so there is no
+/// cancellation in the peak, which near |g| = 1 is only ~(1 − |g|)² wide in w. The
+/// scalar path evaluates it in f64, the lanes in f32.
+#[inline(always)]
+pub fn hg_eval<F: Float>(g: F, cos_theta: F) -> F {
+    let one = F::one();
     hg_peak(
         g,
-        if g >= 0.0 {
-            1.0 - cos_theta
-        } else {
-            1.0 + cos_theta
-        },
+        F::select(g.ge(F::zero()), one - cos_theta, one + cos_theta),
     )
 }
 
 /// p_HG at distance `w` = 1 ∓ cos θ from the peak.
-#[inline]
-fn hg_peak(g: f64, w: f64) -> f64 {
+#[inline(always)]
+fn hg_peak<F: Float>(g: F, w: F) -> F {
+    let one = F::one();
     let a = g.abs();
-    let denom = (1.0 - a) * (1.0 - a) + 2.0 * a * w;
-    (1.0 - g * g) / (4.0 * std::f64::consts::PI * denom * denom.sqrt())
+    let denom = (one - a) * (one - a) + F::of(2.0) * a * w;
+    (one - g * g) / (F::of(4.0 * std::f64::consts::PI) * denom * denom.sqrt())
 }
 
 /// Inverse CDF of p_HG, as the distance from the peak
@@ -53,12 +53,33 @@ fn hg_peak(g: f64, w: f64) -> f64 {
 ///   w = (1 − a) u (s + 1 − a) / (1 + a − 2au),
 /// whose terms are all ≥ 0 (g < 0 is g > 0 mirrored: the peak at cos θ = −1), and which
 /// needs no isotropic special case: at g = 0 it is w = 2u.
-#[inline]
-fn hg_sample_peak_distance(g: f64, u: f64) -> f64 {
+#[inline(always)]
+fn hg_sample_peak_distance<F: Float>(g: F, u: F) -> F {
+    let one = F::one();
+    let two = F::of(2.0);
     let a = g.abs();
-    let q = 1.0 + a - 2.0 * a * u;
-    let s = (1.0 - a * a) / q;
-    ((1.0 - a) * u * (s + 1.0 - a) / q).clamp(0.0, 2.0)
+    let q = one + a - two * a * u;
+    let s = (one - a * a) / q;
+    ((one - a) * u * (s + one - a) / q).max(F::zero()).min(two)
+}
+
+/// A Henyey–Greenstein scattering angle from uniform `u`: w = 1 − cos θ measured from
+/// the direction the light travelled (so that sin θ = √(w (2 − w)) keeps its precision
+/// near θ = 0, which cos θ would lose), and the pdf p_HG, the sample's value (sampling
+/// is exact: the weight is 1).
+#[inline(always)]
+pub fn hg_sample<F: Float>(g: F, u: F) -> (F, F) {
+    let peak = hg_sample_peak_distance(g, u);
+    let w = F::select(g.ge(F::zero()), peak, F::of(2.0) - peak);
+    (w, hg_peak(g, peak))
+}
+
+/// The direction at 1 − cos θ = `w` from the unit `d` and azimuth 2π `u`:
+/// sin θ = √(w (2 − w)), in `d`'s frame (`geometry::coordinate_system`).
+#[inline(always)]
+pub fn direction_at<F: Float>(d: Vector3<F>, w: F, u: F) -> Vector3<F> {
+    let sin_theta = (w * (F::of(2.0) - w)).max(F::zero()).sqrt();
+    around(d, F::one() - w, sin_theta, u)
 }
 
 /// p_R(cos θ) = 3/(16π) (1 + cos² θ).
@@ -96,7 +117,7 @@ impl Phase {
     pub fn eval(&self, cos_theta: f32) -> f32 {
         match *self {
             Phase::Isotropic => 1.0 / (4.0 * PI),
-            Phase::HenyeyGreenstein { g } => hg(g as f64, cos_theta as f64) as f32,
+            Phase::HenyeyGreenstein { g } => hg_eval(g as f64, cos_theta as f64) as f32,
             Phase::Rayleigh => rayleigh(cos_theta as f64) as f32,
         }
     }
@@ -104,14 +125,10 @@ impl Phase {
     /// Samples d_out for light travelling along `d_in`; returns (d_out, pdf).
     #[inline]
     pub fn sample(&self, d_in: Vec3A, u: Vec2) -> (Vec3A, f32) {
-        // w = 1 − cos θ measured from d_in (so the angle near θ = 0 keeps its precision
-        // in sin θ = sqrt(w (2 − w)), which cos θ in f32 would lose).
         let (w, pdf) = match *self {
             Phase::HenyeyGreenstein { g } => {
-                let (g, u) = (g as f64, u.x as f64);
-                let peak = hg_sample_peak_distance(g, u);
-                let w = if g >= 0.0 { peak } else { 2.0 - peak };
-                (w, hg_peak(g, peak) as f32)
+                let (w, pdf) = hg_sample(g as f64, u.x as f64);
+                (w, pdf as f32)
             }
             Phase::Isotropic => (2.0 * u.x as f64, 1.0 / (4.0 * PI)),
             Phase::Rayleigh => {
@@ -119,11 +136,9 @@ impl Phase {
                 (1.0 - mu, rayleigh(mu) as f32)
             }
         };
+        // sin θ from w in f64, then the frame in f32.
         let sin_theta = (w * (2.0 - w)).max(0.0).sqrt() as f32;
-        let cos_theta = (1.0 - w) as f32;
-        let phi = 2.0 * PI * u.y;
-        let local = Vec3A::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta);
-        let d_out = Frame::new(d_in).to_world(local);
+        let d_out = around(d_in.into(), (1.0 - w) as f32, sin_theta, u.y).into();
         (d_out, pdf)
     }
 }
@@ -147,7 +162,7 @@ mod tests {
             for i in 0..n {
                 let w = (lo + (i as f64 + 0.5) * h).exp();
                 let c = sign * (1.0 - w);
-                let v = hg(g, c) * 2.0 * std::f64::consts::PI * w * h;
+                let v = hg_eval(g, c) * 2.0 * std::f64::consts::PI * w * h;
                 norm += v;
                 mean += v * c;
             }
@@ -156,7 +171,7 @@ mod tests {
         }
         // The f32 entry point agrees with the f64 form.
         let p = Phase::HenyeyGreenstein { g: 0.7 };
-        assert!((p.eval(0.3) as f64 - hg(0.7f32 as f64, 0.3f32 as f64)).abs() < 1e-7);
+        assert!((p.eval(0.3) as f64 - hg_eval(0.7f32 as f64, 0.3f32 as f64)).abs() < 1e-7);
     }
 
     /// Sampled cosines have the HG mean g, and the returned pdf is the phase value.

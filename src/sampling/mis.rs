@@ -1,13 +1,12 @@
 //! Multiple importance sampling: how two strategies' estimates of one integral are weighted.
 
-/// Power heuristic with β = 2: `a² / (a² + b²)`, 0 when not finite.
-#[inline]
-pub fn mis_weight(a: f32, b: f32) -> f32 {
+use crate::simd::Float;
+
+/// Power heuristic with β = 2 (Veach 1997, Eq. 9.13): `a² / (a² + b²)`, 0 where not
+/// finite. One definition for a path and for lanes of paths.
+#[inline(always)]
+pub fn mis_weight<F: Float>(a: F, b: F) -> F {
     let (a2, b2) = (a * a, b * b);
     let w = a2 / (a2 + b2);
-    if w.is_finite() {
-        w
-    } else {
-        0.0
-    }
+    F::select(w.is_finite(), w, F::zero())
 }

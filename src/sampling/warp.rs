@@ -2,40 +2,47 @@
 
 use glam::{Vec2, Vec3A};
 
+use crate::simd::{Float, Vector3};
+
 /// Shirley–Chiu concentric map from the unit square to the unit disk.
 pub fn square_to_uniform_disk_concentric(s: Vec2) -> (f32, f32) {
-    let x = 2.0 * s.x - 1.0;
-    let y = 2.0 * s.y - 1.0;
-    if x == 0.0 && y == 0.0 {
-        return (0.0, 0.0);
-    }
-    use std::f32::consts::FRAC_PI_4;
+    concentric_disk(s.x, s.y)
+}
+
+/// The concentric map for a path or for lanes of paths (each wedge's branch a select).
+#[inline(always)]
+pub fn concentric_disk<F: Float>(u1: F, u2: F) -> (F, F) {
+    let (zero, one, two) = (F::zero(), F::one(), F::of(2.0));
+    let x = two * u1 - one;
+    let y = two * u2 - one;
     // φ = θ in the wedges around the x axis and π/2 − θ in those around y, with
     // θ = π/4 · (minor / major) in [−π/4, π/4]: cos φ and sin φ are cos θ and sin θ,
     // swapped in the second case.
-    if x.abs() > y.abs() {
-        let (s, c) = sin_cos_quarter(FRAC_PI_4 * (y / x));
-        (x * c, x * s)
-    } else {
-        let (s, c) = sin_cos_quarter(FRAC_PI_4 * (x / y));
-        (y * s, y * c)
-    }
+    let around_x = x.abs().gt(y.abs());
+    let r = F::select(around_x, x, y);
+    let ratio = F::select(around_x, y / x, x / y);
+    let (s, c) = sin_cos_quarter(F::of(std::f32::consts::FRAC_PI_4 as f64) * ratio);
+    let (dx, dy) = (r * F::select(around_x, c, s), r * F::select(around_x, s, c));
+    // The centre (0/0 above) maps to itself.
+    let centre = x.eq(zero) & y.eq(zero);
+    (F::select(centre, zero, dx), F::select(centre, zero, dy))
 }
 
 /// sin θ and cos θ for |θ| ≤ π/4 by their Taylor series (to θ⁹ and θ¹⁰: the next
 /// terms are below 2e-9 there), without libm's range reduction: within a few units
-/// in the last place of f32.
-#[inline]
-fn sin_cos_quarter(t: f32) -> (f32, f32) {
+/// in the last place of f32, the same in lanes as in one path.
+#[inline(always)]
+fn sin_cos_quarter<F: Float>(t: F) -> (F, F) {
+    let k = |x: f32| F::of(x as f64);
     let t2 = t * t;
     let s = t
-        * (1.0
-            + t2 * (-1.0 / 6.0
-                + t2 * (1.0 / 120.0 + t2 * (-1.0 / 5040.0 + t2 * (1.0 / 362_880.0)))));
-    let c = 1.0
-        + t2 * (-0.5
-            + t2 * (1.0 / 24.0
-                + t2 * (-1.0 / 720.0 + t2 * (1.0 / 40_320.0 + t2 * (-1.0 / 3_628_800.0)))));
+        * (k(1.0)
+            + t2 * (k(-1.0 / 6.0)
+                + t2 * (k(1.0 / 120.0) + t2 * (k(-1.0 / 5040.0) + t2 * k(1.0 / 362_880.0)))));
+    let c = k(1.0)
+        + t2 * (k(-0.5)
+            + t2 * (k(1.0 / 24.0)
+                + t2 * (k(-1.0 / 720.0) + t2 * (k(1.0 / 40_320.0) + t2 * k(-1.0 / 3_628_800.0)))));
     (s, c)
 }
 
@@ -48,9 +55,16 @@ pub fn square_to_uniform_sphere(s: Vec2) -> Vec3A {
 
 /// Malley's method on the concentric disk; pdf = cos θ / π.
 pub fn square_to_cosine_hemisphere(s: Vec2) -> Vec3A {
-    let (x, y) = square_to_uniform_disk_concentric(s);
-    let z = (1.0 - x * x - y * y).max(0.0).sqrt();
-    Vec3A::new(x, y, z)
+    cosine_hemisphere(s.x, s.y).into()
+}
+
+/// Malley's method for a path or for lanes of paths: the disk's point lifted to the
+/// hemisphere, z = √(1 − x² − y²).
+#[inline(always)]
+pub fn cosine_hemisphere<F: Float>(u1: F, u2: F) -> Vector3<F> {
+    let (x, y) = concentric_disk(u1, u2);
+    let z = (F::one() - x * x - y * y).max(F::zero()).sqrt();
+    Vector3::new(x, y, z)
 }
 
 #[cfg(test)]

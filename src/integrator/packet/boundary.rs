@@ -1,11 +1,12 @@
 //! A smooth dielectric boundary of a medium shape in lanes: `bsdf::Dielectric::sample`.
 
 use glam::Vec3;
-use wide::{CmpEq, CmpGe, CmpLe};
+use wide::{CmpEq, CmpLe};
 
 use super::lanes::{draw_1d, draw_2d, L, V3};
 use super::medium_normals;
 use super::scene::PacketScene;
+use crate::bsdf::fresnel::fresnel;
 use crate::sampling::Pcg32;
 
 /// A dielectric boundary's sample: the outward normal, the new direction, its pdf (0:
@@ -46,19 +47,7 @@ pub fn boundary_sample(
     // Fresnel (`bsdf::fresnel`): cos θ_i of wi = −d about the outward normal.
     let one = L::ONE;
     let cos_i = -d.dot(n);
-    let outside = cos_i.cmp_ge(L::ZERO);
-    let eta_it = outside.blend(eta, one / eta);
-    let eta_ti = one / eta_it;
-    let cos_t2 = one - (one - cos_i * cos_i) * eta_ti * eta_ti;
-    let ci = cos_i.abs();
-    let ct = cos_t2.max(L::ZERO).sqrt();
-    let a_s = (ci - eta_it * ct) / (ci + eta_it * ct);
-    let a_p = (ct - eta_it * ci) / (ct + eta_it * ci);
-    let r = L::splat(0.5) * (a_s * a_s + a_p * a_p);
-    let r = ci.cmp_eq(L::ZERO).blend(one, r);
-    let r = eta.cmp_eq(one).blend(L::ZERO, r);
-    let r = cos_t2.cmp_le(L::ZERO).blend(one, r);
-    let cos_t = outside.blend(-ct, ct);
+    let (r, cos_t, eta_it, eta_ti) = fresnel(cos_i, eta);
     let reflect = u.cmp_le(r);
     // Reflection: 2 (wi·n) n − wi; refraction: −η_ti (wi − (wi·n) n) + cos θ_t n.
     let wi = V3::splat(Vec3::ZERO).sub(d);

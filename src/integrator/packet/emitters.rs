@@ -8,7 +8,7 @@ use super::lanes::{draw_2d, lanes_of, mask_of, L, V3, WIDTH};
 use super::scatter;
 use super::scene::{LaneEmitter, PacketScene};
 use crate::geometry::SHADOW_EPSILON;
-use crate::sampling::Pcg32;
+use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
 
 /// Emitter samples from points of the lanes, before the shadow ray: direction,
@@ -42,14 +42,6 @@ impl EmitterLanes {
     pub fn weight(&self, other: L) -> L {
         self.delta.blend(L::ONE, mis_weight(self.pdf, other))
     }
-}
-
-/// The power heuristic `a² / (a² + b²)`, 0 where not finite (`sampling::mis_weight`).
-#[inline(always)]
-fn mis_weight(a: L, b: L) -> L {
-    let (a2, b2) = (a * a, b * b);
-    let w = a2 / (a2 + b2);
-    w.is_finite().blend(w, L::ZERO)
 }
 
 /// An emitter sample per lane of `mask` from its point `p`, one `next_2d` each: in
@@ -135,7 +127,7 @@ pub fn sample_emitters(
             radiance,
         } => {
             let (u1, u2) = draw_2d(mask, rngs);
-            let c = scatter::sample_sphere_cone(center, radius, p, u1, u2);
+            let c = scatter::sample_cone(center, radius, p, u1, u2);
             let value = V3::splat(radiance).scale(c.ok.blend(L::ONE / c.pdf, L::ZERO));
             let out = lanes(c.d, c.dist, value, c.ok, c.pdf, false);
             let inside = mask & c.inside;

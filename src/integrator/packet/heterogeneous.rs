@@ -11,11 +11,14 @@
 //! instead ran as fast as the global majorant in lanes, on the cloud.
 
 use glam::Vec3;
-use wide::{i32x8, CmpGe, CmpGt, CmpLe, CmpLt};
+use wide::{i32x8, CmpGe, CmpLe, CmpLt};
 
 use super::lanes::{draw_1d, lanes_of, L, V3, WIDTH};
 use crate::medium::grid::{Filter, GridData, Source, Volume, Wrap};
-use crate::medium::heterogeneous::HeterogeneousMedium;
+use crate::medium::heterogeneous::{
+    next_tentative, null_weight, ratio_roulette, ratio_weight, real_probability, real_weight,
+    HeterogeneousMedium, RATIO_SURVIVAL,
+};
 use crate::sampling::Pcg32;
 
 /// Where the lanes' free flights ended: a real collision (`collided`, at `t`, the
@@ -146,8 +149,7 @@ struct Tracker {
     t: L,
     t1: L,
     active: L,
-    majorant: V3,
-    inv_majorant: L,
+    majorant: L,
     scale: L,
 }
 
@@ -162,8 +164,7 @@ impl Tracker {
             } else {
                 L::ZERO
             },
-            majorant: V3::splat(Vec3::splat(h.majorant)),
-            inv_majorant: L::splat(1.0 / h.majorant),
+            majorant: L::splat(h.majorant),
             scale: L::splat(h.scale),
         }
     }
@@ -173,7 +174,7 @@ impl Tracker {
     #[inline(always)]
     fn step(&mut self, rngs: &mut [Pcg32]) -> bool {
         let u = draw_1d(self.active, rngs);
-        let t = self.t - (L::ONE - u).ln() * self.inv_majorant;
+        let t = next_tentative(self.t, u, self.majorant);
         self.t = self.active.blend(t, self.t);
         self.active &= self.t.cmp_lt(self.t1);
         self.active.any()
@@ -198,24 +199,22 @@ pub fn sample_flight(
         let active = tracker.active;
         let p = o.add(d.scale(tracker.t));
         let sigma_t = eval(&h.sigma_t, p, active).scale(tracker.scale);
-        let mean = sigma_t.mean();
         // Real with probability P = mean(σ_t) / σ̄, else null.
         let u = draw_1d(active, rngs);
-        let real = active & u.cmp_lt(mean * tracker.inv_majorant);
+        let real = active & u.cmp_lt(real_probability(sigma_t, tracker.majorant));
         if real.any() {
-            weight = weight.select(real, weight.mul(sigma_t.div(mean)));
+            weight = weight.select(real, weight.mul(real_weight(sigma_t)));
             albedo = albedo.select(real, eval(&h.albedo, p, real));
             collided |= real;
         }
         let null = active & !real;
-        let sigma_n = tracker.majorant.sub(sigma_t);
-        let m = sigma_n.mean();
         // No null collision can happen where σ_n is 0 in every channel (σ_t at the
-        // majorant): the scalar flight passes with weight 0 there.
-        let stuck = null & m.cmp_le(L::ZERO);
+        // majorant): the flight passes with weight 0 there.
+        let (null_w, stuck) = null_weight(sigma_t, tracker.majorant);
+        let stuck = null & stuck;
         weight = weight.select(stuck, V3::splat(Vec3::ZERO));
         tracker.active = null & !stuck;
-        weight = weight.select(tracker.active, weight.mul(sigma_n.div(m)));
+        weight = weight.select(tracker.active, weight.mul(null_w));
     }
     Flight {
         collided,
@@ -241,18 +240,16 @@ pub fn transmittance(
     while tracker.step(rngs) {
         let active = tracker.active;
         let sigma_t = eval(&h.sigma_t, o.add(d.scale(tracker.t)), active).scale(tracker.scale);
-        let ratio = tracker.majorant.sub(sigma_t).scale(tracker.inv_majorant);
-        tr = tr.select(active, ratio.mul(tr));
-        // Russian roulette once little is left (survivors weigh 1/q, q = 1/2); the
-        // scalar code draws only where something is left.
-        let m = tr.max_element();
-        let low = active & m.cmp_lt(L::splat(0.1));
-        if low.any() {
-            let left = low & m.cmp_gt(L::ZERO);
-            let u = draw_1d(left, rngs);
-            let ended = (low & !left) | (left & u.cmp_ge(L::splat(0.5)));
+        tr = tr.select(active, ratio_weight(sigma_t, tracker.majorant).mul(tr));
+        // Russian roulette once little is left (survivors weigh 1/q); a draw only where
+        // something is left.
+        let (play, end) = ratio_roulette(tr.max_element());
+        let (play, end) = (active & play, active & end);
+        if (play | end).any() {
+            let u = draw_1d(play, rngs);
+            let ended = end | (play & u.cmp_ge(L::splat(RATIO_SURVIVAL)));
             tr = tr.select(ended, V3::splat(Vec3::ZERO));
-            tr = tr.select(low & !ended, tr.scale(L::splat(2.0)));
+            tr = tr.select(play & !ended, tr.scale(L::splat(1.0 / RATIO_SURVIVAL)));
             tracker.active &= !ended;
         }
     }

@@ -10,6 +10,7 @@ use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 use super::heterogeneous;
 use super::lanes::{L, V3};
 use super::scene::{MediumKind, PacketScene, SurfaceShape};
+use crate::medium::transmittance_rgb;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
 
@@ -244,7 +245,7 @@ pub fn shadow_transmittance(
         let len = from_inside.blend(span.exit.min(dist), span.enters.blend(through, L::ZERO));
         if len.cmp_gt(L::ZERO).any() {
             let sigma_t = ps.media[m.medium as usize].sigma_t;
-            tr = tr.mul(V3::transmittance(V3::splat(sigma_t), len));
+            tr = tr.mul(transmittance_rgb(V3::splat(sigma_t), len));
         }
     }
     tr.select(blocked, V3::splat(Vec3::ZERO))

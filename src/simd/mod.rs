@@ -3,9 +3,15 @@
 //! two SSE registers). Comparisons answer a bit mask, lane k in bit k, so code that
 //! tests many things at once branches once per register, on whether any bit is set.
 //!
+//! [`Float`] is the number type the physics kernels are written over once (f32, f64 or
+//! lanes), [`Vector3`] a vector of it.
+//!
 //! Only what the lane kernels use is here; each operation is one instruction (or two
 //! on the narrow path) and rounds as its scalar counterpart does.
 
+mod float;
+
+pub use float::{Float, Vector3};
 pub use imp::{Lanes, Mask, WIDTH};
 
 #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]
