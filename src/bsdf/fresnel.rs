@@ -28,7 +28,7 @@ pub fn fresnel<F: Float>(cos_theta_i: F, eta: F) -> (F, F, F, F) {
     let r = F::select(ci.eq(zero), one, r);
     let r = F::select(eta.eq(one), zero, r);
     let r = F::select(cos_t_sqr.le(zero), one, r);
-    let cos_theta_t = F::select(outside, -ct, ct);
+    let cos_theta_t = F::select(outside, ct.negate(), ct);
     (r, cos_theta_t, eta_it, eta_ti)
 }
 

@@ -72,10 +72,10 @@ pub struct Frame {
 pub fn coordinate_system<F: Float>(n: Vector3<F>) -> (Vector3<F>, Vector3<F>) {
     let one = F::one();
     let sign = one.copysign(n.z);
-    let a = -one / (sign + n.z);
+    let a = one.negate() / (sign + n.z);
     let b = n.x * n.y * a;
-    let s = Vector3::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    let t = Vector3::new(b, sign + n.y * n.y * a, -n.y);
+    let s = Vector3::new(one + sign * n.x * n.x * a, sign * b, sign.negate() * n.x);
+    let t = Vector3::new(b, sign + n.y * n.y * a, n.y.negate());
     (s, t)
 }
 

@@ -604,4 +604,6 @@ fn gather_media(
 }
 
 #[cfg(test)]
+mod kernel_tests;
+#[cfg(test)]
 mod tests;

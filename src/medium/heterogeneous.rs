@@ -209,7 +209,7 @@ fn optical_depth(rng: &mut Pcg32) -> f32 {
 /// −ln(1 − u) for a path or lanes of paths (as `medium::sample_distance` at σ = 1).
 #[inline(always)]
 pub fn optical_depth_of<F: Float>(u: F) -> F {
-    -(F::one() - u).ln()
+    (F::one() - u).ln().negate()
 }
 
 /// The next tentative collision after `t` at majorant σ̄, from uniform `u`.

@@ -78,14 +78,14 @@ impl HomogeneousMedium {
 /// times faster than its log1pf.
 #[inline(always)]
 pub fn sample_distance<F: Float>(sigma: F, u: F) -> F {
-    let t = -(F::one() - u).ln() / sigma;
+    let t = (F::one() - u).ln().negate() / sigma;
     F::select(sigma.gt(F::zero()), t, F::of(f64::INFINITY))
 }
 
 /// e^{−σ t} (Beer–Lambert), with `0 · ∞ = 0`: no extinction, no attenuation, at any t.
 #[inline(always)]
 pub fn transmittance_at<F: Float>(sigma: F, t: F) -> F {
-    F::select(sigma.gt(F::zero()), (-sigma * t).exp(), F::one())
+    F::select(sigma.gt(F::zero()), (sigma.negate() * t).exp(), F::one())
 }
 
 /// `e^{−σ t}` per channel ([`transmittance_at`]). A grey σ_t (most media) takes one

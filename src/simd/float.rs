@@ -6,18 +6,13 @@
 //! transcendental ones in lanes (`exp`, `ln`, `sin_cos`: `wide`'s polynomials, within a
 //! few ulp of libm's).
 
-use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+use std::ops::{Add, BitAnd, BitOr, Div, Mul, Not, Sub};
 
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 /// A real number per path: `f32`, `f64`, or `f32x8` lanes.
 pub trait Float:
-    Copy
-    + Add<Output = Self>
-    + Sub<Output = Self>
-    + Mul<Output = Self>
-    + Div<Output = Self>
-    + Neg<Output = Self>
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
 {
     /// A truth value per path: `bool`, or a lane mask (all bits set where true).
     type Mask: Copy
@@ -27,6 +22,9 @@ pub trait Float:
 
     /// A constant, rounded once to this type (an `f64` kernel keeps its digits).
     fn of(x: f64) -> Self;
+    /// −x, the sign bit flipped (−0 from +0, as on one path; `wide`'s `-x` is 0 − x,
+    /// which gives +0, so the lanes have no `Neg` here).
+    fn negate(self) -> Self;
     fn sqrt(self) -> Self;
     fn abs(self) -> Self;
     /// The larger; the other where one is NaN (as `f32::max`).
@@ -66,6 +64,10 @@ macro_rules! scalar {
             #[inline(always)]
             fn of(x: f64) -> Self {
                 x as $t
+            }
+            #[inline(always)]
+            fn negate(self) -> Self {
+                -self
             }
             #[inline(always)]
             fn sqrt(self) -> Self {
@@ -143,6 +145,10 @@ impl Float for f32x8 {
     #[inline(always)]
     fn of(x: f64) -> Self {
         f32x8::splat(x as f32)
+    }
+    #[inline(always)]
+    fn negate(self) -> Self {
+        self ^ f32x8::splat(-0.0)
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
