@@ -70,8 +70,20 @@ fn hg_sample_peak_distance<F: Float>(g: F, u: F) -> F {
 #[inline(always)]
 pub fn hg_sample<F: Float>(g: F, u: F) -> (F, F) {
     let peak = hg_sample_peak_distance(g, u);
-    let w = F::select(g.ge(F::zero()), peak, F::of(2.0) - peak);
-    (w, hg_peak(g, peak))
+    (hg_angle(g, peak), hg_peak(g, peak))
+}
+
+/// [`hg_sample`]'s angle alone, where the pdf is not wanted (LLVM keeps the unused
+/// pdf's divisions and square root in lanes: 10% of a furnace's time).
+#[inline(always)]
+pub fn hg_sample_angle<F: Float>(g: F, u: F) -> F {
+    hg_angle(g, hg_sample_peak_distance(g, u))
+}
+
+/// w = 1 − cos θ from the distance to the peak (at cos θ = ±1 for g ≷ 0).
+#[inline(always)]
+fn hg_angle<F: Float>(g: F, peak: F) -> F {
+    F::select(g.ge(F::zero()), peak, F::of(2.0) - peak)
 }
 
 /// The direction at 1 − cos θ = `w` from the unit `d` and azimuth 2π `u`:

@@ -20,7 +20,7 @@ pub fn concentric_disk<F: Float>(u1: F, u2: F) -> (F, F) {
     // swapped in the second case.
     let around_x = x.abs().gt(y.abs());
     let r = F::select(around_x, x, y);
-    let ratio = F::select(around_x, y / x, x / y);
+    let ratio = F::select(around_x, y, x) / r;
     let (s, c) = sin_cos_quarter(F::of(std::f32::consts::FRAC_PI_4 as f64) * ratio);
     let (dx, dy) = (r * F::select(around_x, c, s), r * F::select(around_x, s, c));
     // The centre (0/0 above) maps to itself.

@@ -9,7 +9,7 @@ use wide::CmpGt;
 use super::lanes::{L, V3};
 use crate::geometry::shape::sample_sphere_cone;
 use crate::geometry::to_world;
-use crate::medium::phase::{direction_at, hg_sample};
+use crate::medium::phase::{direction_at, hg_sample_angle};
 use crate::sampling::warp::cosine_hemisphere;
 
 /// The direction after a Henyey–Greenstein scattering of light travelling along `d`
@@ -17,8 +17,7 @@ use crate::sampling::warp::cosine_hemisphere;
 /// moderate |g|). Sampling is exact: the weight is 1.
 #[inline(always)]
 pub fn sample_hg(d: V3, g: L, u1: L, u2: L) -> V3 {
-    let (w, _) = hg_sample(g, u1);
-    direction_at(d, w, u2)
+    direction_at(d, hg_sample_angle(g, u1), u2)
 }
 
 /// A cosine-weighted direction about the unit normal `n` (pdf cos θ / π), by Malley's
