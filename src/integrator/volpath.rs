@@ -51,22 +51,13 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::emitters::{sample_light_at_surface, skip_emitters};
-use super::roulette::continue_probability;
 use super::sample::PathSample;
-use crate::bsdf::Bsdf;
-use crate::geometry::accel::{Crossing, CrossingList, Crossings};
-use crate::geometry::{offset_point, SHADOW_EPSILON};
-use crate::medium::{
-    collision_weight, expected_pass_weight, pass_weight, transmittance, HomogeneousMedium,
-};
+use crate::geometry::SHADOW_EPSILON;
+use crate::medium::HomogeneousMedium;
 use crate::sampling::mis_weight;
 use crate::sampling::Pcg32;
 use crate::scene::{Scene, ShapeInfo, SurfaceInteraction};
 
-/// Null-boundary crossings a shadow ray may make before it is treated as blocked
-/// (guards against a degenerate scene trapping the ray).
-const MAX_SHADOW_CROSSINGS: u32 = 256;
 /// Consecutive null-boundary crossings (no scattering between them: depth does not
 /// grow, and Russian roulette may not run) after which a path ends. Only a degenerate
 /// scene gets here (a ray caught between coincident surfaces); without the limit the
@@ -91,114 +82,6 @@ fn medium_beyond(info: &ShapeInfo, along_normal: bool, current: Option<u32>) -> 
     } else {
         info.interior
     }
-}
-
-/// Transmittance from `o` along unit `d` over `dist`, starting in `medium`: the product
-/// of `e^{−σ_t s}` over the segments, through `null` surfaces (switching medium by the
-/// side crossed) and `thindielectric` ones (times their transmission); 0 if any other
-/// surface blocks the way.
-///
-/// Where the accelerator can, it finds every crossing in one traversal
-/// ([`Scene::crossings`]); else one ray is
-/// cast per crossing, as Mitsuba does.
-fn shadow_transmittance(
-    scene: &Scene,
-    o: Vec3A,
-    d: Vec3A,
-    dist: f32,
-    medium: Option<u32>,
-    rng: &mut Pcg32,
-) -> Vec3 {
-    let mut hits = CrossingList::new();
-    match scene.crossings(o, d, dist, &mut hits) {
-        Crossings::Blocked => Vec3::ZERO,
-        Crossings::Found => through_crossings(scene, o, d, dist, medium, &mut hits, rng),
-        Crossings::Unsupported => shadow_transmittance_stepwise(scene, o, d, dist, medium, rng),
-    }
-}
-
-/// The transmittance of a shadow ray over `dist` whose pass-through crossings
-/// are `hits` (in any order): the segments between them in turn, each in the medium
-/// the previous crossing entered. A surface found twice at one distance (on an edge
-/// shared by two triangles) changes nothing: the second crossing enters the medium the
-/// first did, after a segment of length 0.
-fn through_crossings(
-    scene: &Scene,
-    o: Vec3A,
-    d: Vec3A,
-    dist: f32,
-    mut medium: Option<u32>,
-    hits: &mut [Crossing],
-    rng: &mut Pcg32,
-) -> Vec3 {
-    hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t));
-    let mut tr = Vec3::ONE;
-    let mut start = 0.0f32;
-    for h in hits.iter() {
-        if let Some(m) = medium {
-            tr *= segment_transmittance(scene, m, o + d * start, d, h.t - start, rng);
-        }
-        start = h.t;
-        medium = medium_beyond(&scene.shapes[h.shape as usize], h.along_normal, medium);
-    }
-    if let Some(m) = medium {
-        tr *= segment_transmittance(scene, m, o + d * start, d, dist - start, rng);
-    }
-    tr
-}
-
-/// The transmittance of a segment from `o` along `d` of length `len` in medium `m`:
-/// Beer–Lambert in a homogeneous medium, ratio tracking (an unbiased estimate) in a
-/// heterogeneous one.
-#[inline]
-fn segment_transmittance(
-    scene: &Scene,
-    m: u32,
-    o: Vec3A,
-    d: Vec3A,
-    len: f32,
-    rng: &mut Pcg32,
-) -> Vec3 {
-    let med = &scene.media[m as usize];
-    match &med.heterogeneous {
-        None => transmittance(med.sigma_t, len),
-        Some(h) => h.transmittance(o, d, len, rng),
-    }
-}
-
-/// [`shadow_transmittance`] by one closest-hit cast per crossing.
-fn shadow_transmittance_stepwise(
-    scene: &Scene,
-    mut o: Vec3A,
-    d: Vec3A,
-    mut dist: f32,
-    mut medium: Option<u32>,
-    rng: &mut Pcg32,
-) -> Vec3 {
-    let mut tr = Vec3::ONE;
-    for _ in 0..MAX_SHADOW_CROSSINGS {
-        if dist <= 0.0 {
-            return tr;
-        }
-        let hit = scene.intersect(o, d, dist);
-        let seg = hit.map_or(dist, |h| h.t);
-        if let Some(m) = medium {
-            tr *= segment_transmittance(scene, m, o, d, seg, rng);
-        }
-        let Some(h) = hit else { return tr };
-        let info = &scene.shapes[h.shape as usize];
-        // Through a null or thin-dielectric surface, by what it lets through; any
-        // other surface blocks.
-        tr *= scene.bsdfs[info.bsdf as usize].null_transmission(h.sh_frame.n.dot(d), h.uv);
-        if tr == Vec3::ZERO {
-            return Vec3::ZERO;
-        }
-        medium = medium_after(info, h.n, d, medium);
-        let o2 = offset_point(h.p, h.n, d, scene.offset_scale);
-        dist -= (o2 - o).length();
-        o = o2;
-    }
-    Vec3::ZERO
 }
 
 /// Emitter sampling from the medium point `p` of `m` (in `medium`), light leaving it
@@ -361,7 +244,8 @@ pub struct PathSettings<'a> {
 
 /// One radiance sample along the camera ray (o, d), the camera sitting in
 /// `scene.camera_medium`, with the media's albedos of `settings`, and the sample of the
-/// derivative asked for (0 for none).
+/// derivative asked for (0 for none): Mitsuba's loop, each of its steps one method of
+/// [`PathState`] (`volpath::path`).
 pub fn sample(
     scene: &Scene,
     settings: &PathSettings,
@@ -370,336 +254,33 @@ pub fn sample(
     tmax: f32,
     rng: &mut Pcg32,
 ) -> PathSample {
-    let s = &scene.integrator;
-    let n_emitters = scene.emitters.len();
-    let mut result = Vec3::ZERO;
-    let mut seen_emission = Vec3::ZERO;
-    // Mitsuba's `valid_ray`, the film's alpha: a visible environment, a scattering in a
-    // medium, or a surface whose BSDF sample is not a null one.
-    let mut valid = !s.hide_emitters && scene.environment.is_some();
-    let mut d_result = Vec3::ZERO;
-    // dβ/dα of the chosen medium's albedo (zero while no vertex in it).
-    let mut d_beta = Vec3::ZERO;
-    // β = f / p_hero and r_c = p_c / p_hero (see the module comment), rescaled together
-    // after every free flight so that mean(r) = 1: β is then the path's weight.
-    let mut beta = Vec3::ONE;
-    let mut r_u = Vec3::ONE;
-    let mut eta = 1.0f32;
-    let mut depth: u32 = 0;
-    let mut null_crossings: u32 = 0;
-    let mut medium = scene.camera_medium;
-    let mut specular_chain = !s.hide_emitters;
-    let mut last = LastScatter { p: o, pdf: 1.0 };
-    // The clearance at `ray_o`, where already looked up (see the free flight).
-    let mut origin_clearance: Option<f32> = None;
-    let hero = ((rng.next_1d() * 3.0) as usize).min(2);
-    let (mut ray_o, mut ray_d, mut ray_tmax) = (o, d, tmax);
-
+    let mut path = PathState::new(scene, (o, d, tmax), rng);
     loop {
         // ---- Termination: zero weight, depth, Russian roulette ----
-        if (beta == Vec3::ZERO && d_beta == Vec3::ZERO) || depth >= s.max_depth {
+        if !path.survives(scene, settings, rng) {
             break;
         }
-        if depth > s.rr_depth {
-            // Drawn only where the roulette is played (by depth, so the same at every
-            // albedo): the path's first draws, stratified (`sampling::padded`), go to
-            // what shapes the image, not to a roulette that is not played.
-            let u_rr = rng.next_1d();
-            // The same q as without a gradient (same paths), except that a path whose β
-            // is 0 but dβ is not (albedo 0) must keep q > 0 for the detached estimator.
-            // The difference's paths are rouletted by the target's weight β_t = β + dβ
-            // (≥ β): by β, long paths, which weigh (α_t/α)^k more at the target, would
-            // end early and their survivors' 1/q give D a heavy tail; by β_t, |dβ|/q stays
-            // bounded, and q is the same at every source albedo.
-            let roulette_weight = match settings.gradient {
-                Gradient::Difference { .. } => beta + d_beta,
-                _ => beta,
-            };
-            let q = continue_probability(roulette_weight.into(), d_beta.into(), eta);
-            if q.is_nan() || u_rr >= q {
-                break;
-            }
-            beta /= q;
-            d_beta /= q;
-        }
-
         // ---- Free flight through the current medium ----
-        // Whether the emission at this ray's end is already counted (in expectation).
-        let mut emission_counted = false;
-        let mut si;
-        let mut in_medium = false;
-        // dβ without this vertex's own α (for the power-test variant only).
-        let mut d_beta_before = Vec3::ZERO;
-        if let Some(mi) = medium {
-            let m: &HomogeneousMedium = &scene.media[mi as usize];
-            // The render's albedo of this medium (the scene's unless overridden).
-            let albedo = settings.albedo[mi as usize];
-            // The clearance at the flight's origin, where the vertex it starts from
-            // looked it up (for its emitter sample): the same point, the same value.
-            let known_clearance = origin_clearance.take();
-            let (t, clearance) = if let Some(het) = m.heterogeneous.as_deref() {
-                // ---- Delta tracking through a heterogeneous medium ----
-                // The surface that ends the ray, then the first real collision before
-                // it (medium::heterogeneous). The majorant is grey, so every channel's
-                // pdf is the hero's: r is unchanged.
-                let hit = scene.intersect_in_medium(mi, ray_o, ray_d, ray_tmax);
-                let end = hit.as_ref().map_or(ray_tmax, |h| h.t);
-                let (collision, w) = het.sample_flight(ray_o, ray_d, end, rng);
-                beta *= w;
-                d_beta *= w;
-                match collision {
-                    Some(c) => {
-                        si = None;
-                        // The albedo there: the render's factor on the volume (1 as
-                        // loaded) times the volume's value; the gradient is the
-                        // factor's, so the vertex weighs c.albedo beside it.
-                        d_beta_before = d_beta * albedo * c.albedo;
-                        let (a, b) = settings.gradient.vertex_factors(mi, albedo);
-                        d_beta = (d_beta * a + beta * b) * c.albedo;
-                        beta *= albedo * c.albedo;
-                        in_medium = true;
-                        (c.t, 0.0)
-                    }
-                    None => {
-                        si = hit;
-                        (end, 0.0)
-                    }
-                }
-            } else {
-                let t = m.sample_distance(hero, rng.next_1d());
-                // Within the clearance no surface can be hit: the cast's answer is known.
-                // In a convex medium the distance to its one shape is a clearance too, and
-                // an exact one. Shadow rays are still played against the grid's alone
-                // (below): against the convex one, the medium cube's shadow roulette cost
-                // more in variance (+6% MSE) than it saved in time (−2%).
-                let clearance = known_clearance.unwrap_or_else(|| scene.clearance.at(ray_o));
-                let convex = scene.convex_media[mi as usize].as_ref();
-                let skip_within = convex.map_or(clearance, |b| {
-                    b.clearance(&scene.geometries, ray_o).max(clearance)
-                });
-                // Where the ray may end on an area emitter, it is cast in full (not only up
-                // to t, nor skipped within the clearance), so the emission there can be
-                // counted in expectation.
-                si = if scene.may_see_area_emitter(mi, ray_o, ray_d) {
-                    let full = scene.intersect_in_medium(mi, ray_o, ray_d, ray_tmax);
-                    // ---- Emission at the segment's end, in expectation ----
-                    // The flight passes to the hit with probability T_hero(h.t) and then weighs the
-                    // emission by β T / mean(r T) (see the module comment): count that
-                    // product now instead of its 0-or-1 sample, and not again at the hit.
-                    if let Some(h) = &full {
-                        let le = emission_seen(scene, Some(h), ray_d, depth, specular_chain, &last);
-                        if le != Vec3::ZERO {
-                            let tr = m.transmittance(h.t);
-                            let pass: Vec3 =
-                                expected_pass_weight(tr.into(), tr[hero], r_u.into()).into();
-                            if pass.is_finite() {
-                                result += beta * pass * le;
-                                d_result += d_beta * pass * le;
-                            }
-                            emission_counted = true;
-                        }
-                    }
-                    full.filter(|h| h.t < t)
-                } else if t < skip_within {
-                    None
-                } else {
-                    scene.intersect_in_medium(mi, ray_o, ray_d, t.min(ray_tmax))
-                };
-                let collided = si.is_none() && t.is_finite() && t <= ray_tmax;
-                if m.is_grey() {
-                    // Grey σ_t: f and every p_c are alike, so w = T / T = 1 for passing and
-                    // σ_t T / (σ_t T) = 1 for a collision (exactly, in floating point too):
-                    // only α is left, r is unchanged, and no transmittance is needed.
-                    if collided {
-                        d_beta_before = d_beta * albedo;
-                        let (a, b) = settings.gradient.vertex_factors(mi, albedo);
-                        d_beta = d_beta * a + beta * b;
-                        beta *= albedo;
-                        in_medium = true;
-                    }
-                } else {
-                    match si {
-                        Some(h) => {
-                            // Passed the whole segment: f = T, p_c = T_c.
-                            let tr = m.transmittance(h.t);
-                            let w: Vec3 = pass_weight(tr.into(), tr[hero]).into();
-                            beta *= w;
-                            d_beta *= w;
-                            r_u *= w;
-                        }
-                        None if collided => {
-                            // Collision at t: f = T σ_t α, p_c = σ_t,c T_c.
-                            let tr = m.transmittance(t);
-                            let w: Vec3 = collision_weight(
-                                tr.into(),
-                                m.sigma_t.into(),
-                                m.sigma_t[hero],
-                                tr[hero],
-                            )
-                            .into();
-                            // d(β w α)/dα = dβ w α + β w in the chosen medium.
-                            d_beta_before = d_beta * w * albedo;
-                            let (a, b) = settings.gradient.vertex_factors(mi, albedo);
-                            d_beta = d_beta * w * a + beta * w * b;
-                            beta *= w * albedo;
-                            r_u *= w;
-                            in_medium = true;
-                        }
-                        None => {
-                            // Left through the far end of the ray without a collision.
-                            let tr = m.transmittance(ray_tmax);
-                            let w: Vec3 = pass_weight(tr.into(), tr[hero]).into();
-                            beta *= w;
-                            d_beta *= w;
-                            r_u *= w;
-                        }
-                    }
-                    // Keep mean(r) = 1: scaling β and r alike leaves β / mean(r) and every later
-                    // update unchanged, and keeps both bounded on long chromatic paths.
-                    let k = mean(r_u);
-                    beta /= k;
-                    d_beta /= k;
-                    d_beta_before /= k;
-                    r_u /= k;
-                }
-                (t, clearance)
-            };
-            if !beta.is_finite() || !r_u.is_finite() || !d_beta.is_finite() {
+        let flight = match path.medium {
+            Some(mi) => path.free_flight(scene, settings, mi, rng),
+            None => Flight::through_vacuum(),
+        };
+        if path.medium.is_some() && !path.weights_finite() {
+            break;
+        }
+        if flight.scattered {
+            // ---- A scattering vertex in the medium ----
+            if !path.scatter_in_medium(scene, settings, &flight, rng) {
                 break;
             }
-            if in_medium {
-                null_crossings = 0;
-                depth += 1;
-                if depth >= s.max_depth {
-                    break;
-                }
-                valid = true;
-                let p = ray_o + ray_d * t;
-                // ---- Emitter sampling from the medium vertex ----
-                // p lies within the flight's clearance less t, and within its own, which
-                // the next flight (from p) starts with. A heterogeneous medium has no
-                // use for either: its shadow rays are not rouletted, and its flights are
-                // cast in full.
-                let free = if m.heterogeneous.is_none() {
-                    let at_p = scene.clearance.at(p);
-                    origin_clearance = Some(at_p);
-                    (clearance - t).max(at_p)
-                } else {
-                    0.0
-                };
-                let x = medium_emitter_sample(scene, m, medium, p, ray_d, free, rng);
-                if x != Vec3::ZERO {
-                    result += beta * x;
-                    d_result += x * match settings.gradient {
-                        Gradient::AlbedoIgnoringNeeVertex(_) => d_beta_before,
-                        _ => d_beta,
-                    };
-                }
-                specular_chain = !m.sample_emitters;
-                // ---- Phase function sampling ----
-                let (wo, pdf) = m.phase.sample(ray_d, rng.next_2d());
-                last = LastScatter { p, pdf };
-                ray_o = p;
-                ray_d = wo;
-                ray_tmax = f32::INFINITY;
-                continue;
-            }
-        } else {
-            si = None;
-        }
-
-        // ---- Surface interaction (or escape) ----
-        if medium.is_none() {
-            si = if s.hide_emitters && depth == 0 {
-                skip_emitters(scene, ray_o, ray_d, ray_tmax)
-            } else {
-                scene.intersect(ray_o, ray_d, ray_tmax)
-            };
-        }
-        if !emission_counted {
-            let le = emission_seen(scene, si.as_ref(), ray_d, depth, specular_chain, &last);
-            result += beta * le;
-            d_result += d_beta * le;
-            // At the camera ray's first intersection, as `aovs::seen_emission` traces it.
-            if depth == 0 && null_crossings == 0 && medium.is_none() && si.is_some() {
-                seen_emission = le;
-            }
-        }
-        let Some(h) = si else { break };
-        let info = &scene.shapes[h.shape as usize];
-        let bsdf = &scene.bsdfs[info.bsdf as usize];
-
-        // ---- A null boundary: the ray goes on unchanged into the next medium ----
-        // What the null BSDF's sample says (wo = ray_d, weight 1, not a scattering
-        // vertex, no emitter sampling), without its frame changes and random numbers.
-        if matches!(bsdf, Bsdf::Null) {
-            null_crossings += 1;
-            if null_crossings > MAX_NULL_CROSSINGS {
-                break;
-            }
-            medium = medium_after(info, h.n, ray_d, medium);
-            ray_o = offset_point(h.p, h.n, ray_d, scene.offset_scale);
-            ray_tmax = f32::INFINITY;
             continue;
         }
-        let wi = h.sh_frame.to_local(-ray_d);
-
-        // ---- Emitter sampling from the surface ----
-        if bsdf.is_smooth() && n_emitters > 0 && depth + 1 < s.max_depth {
-            let u = rng.next_2d();
-            let transmittance = |o, d, dist| {
-                let m = medium_after(info, h.n, d, medium);
-                shadow_transmittance(scene, o, d, dist, m, rng)
-            };
-            if let Some(ls) = sample_light_at_surface(scene, &h, wi, bsdf, u, transmittance) {
-                let w = if ls.delta {
-                    1.0
-                } else {
-                    mis_weight(ls.emitter_pdf, ls.bsdf_pdf)
-                };
-                result += beta * ls.value * w;
-                d_result += d_beta * ls.value * w;
-            }
-        }
-
-        // ---- BSDF sampling ----
-        let s1 = rng.next_1d();
-        let s2 = rng.next_2d();
-        let sampled = bsdf.sample(wi, s1, s2, h.uv);
-        // A failed sample is not a null one (Mitsuba tests the sampled lobe's flags).
-        valid |= !sampled.is_some_and(|b| b.null);
-        let Some(bs) = sampled else {
+        // ---- Surface interaction (or escape) ----
+        if !path.at_surface(scene, flight, rng) {
             break;
-        };
-        let wo = h.sh_frame.to_world(bs.wo);
-        beta *= bs.weight;
-        d_beta *= bs.weight;
-        eta *= bs.eta;
-        if bs.null {
-            null_crossings += 1;
-            if null_crossings > MAX_NULL_CROSSINGS {
-                break;
-            }
-        } else {
-            null_crossings = 0;
-            depth += 1;
-            last = LastScatter {
-                p: h.p,
-                pdf: bs.pdf,
-            };
-            specular_chain = bs.delta;
         }
-        medium = medium_after(info, h.n, wo, medium);
-        ray_o = offset_point(h.p, h.n, wo, scene.offset_scale);
-        ray_d = wo;
-        ray_tmax = f32::INFINITY;
     }
-    PathSample {
-        radiance: result,
-        second: d_result,
-        seen_emission,
-        valid,
-    }
+    path.sample()
 }
 
 #[inline]
@@ -707,5 +288,12 @@ fn mean(v: Vec3) -> f32 {
     (v.x + v.y + v.z) * (1.0 / 3.0)
 }
 
+mod path;
+mod shadow;
 #[cfg(test)]
 mod tests;
+
+use path::{Flight, PathState};
+use shadow::shadow_transmittance;
+#[cfg(test)]
+use shadow::*;
