@@ -295,5 +295,3 @@ mod tests;
 
 use path::{Flight, PathState};
 use shadow::shadow_transmittance;
-#[cfg(test)]
-use shadow::*;

@@ -220,6 +220,9 @@ pub struct Vector3<F> {
     pub z: F,
 }
 
+// `add`, `sub`, `mul` and `div` are methods (a kernel reads as a chain of them, as the
+// lane code always did), not the operator traits.
+#[allow(clippy::should_implement_trait)]
 impl<F: Float> Vector3<F> {
     #[inline(always)]
     pub fn new(x: F, y: F, z: F) -> Self {

@@ -2,6 +2,7 @@
 //! once, emitters seen through media, convex and sealed media.
 
 use super::*;
+use crate::geometry::accel::{CrossingList, Crossings};
 use crate::sampling::warp::square_to_uniform_sphere;
 
 /// Two null cubes around media (one chromatic and turned) and a blocking cube, in
