@@ -218,121 +218,14 @@ impl PacketScene {
                     let Some(reflectance) = reflectance.constant() else {
                         return Err("a diffuse reflectance is textured".into());
                     };
-                    let (shape, bound) = match geometry {
-                        Geometry::Sphere(s) if !s.flip_normals => {
-                            let center = Vec3::from(s.center);
-                            let shape = SurfaceShape::Sphere {
-                                center,
-                                radius2: s.radius * s.radius,
-                            };
-                            (shape, (center, s.radius))
-                        }
-                        Geometry::Planar(p) => {
-                            let shape = SurfaceShape::Planar {
-                                rows: [p.to_local.row(0), p.to_local.row(1), p.to_local.row(2)],
-                                normal: Vec3::from(p.normal),
-                                disk: p.is_disk,
-                            };
-                            let center = p.to_world.transform_point3(Vec3::ZERO);
-                            let radius = [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
-                                .into_iter()
-                                .map(|(x, y)| {
-                                    p.to_world
-                                        .transform_point3(Vec3::new(x, y, 0.0))
-                                        .distance(center)
-                                })
-                                .fold(0.0f32, f32::max);
-                            (shape, (center, radius))
-                        }
-                        g => match medium_kind(g) {
-                            Some((MediumKind::Box { rows }, bound)) => {
-                                (SurfaceShape::Box { rows }, bound)
-                            }
-                            _ => {
-                                return Err(
-                                    "a diffuse shape is not a rectangle, disk, sphere or cube"
-                                        .into(),
-                                )
-                            }
-                        },
-                    };
-                    surfaces.push(Surface {
-                        shape,
-                        reflectance,
-                        emitter: info.emitter,
-                        container: -1.0,
-                        bound,
-                    });
+                    surfaces.push(diffuse_surface(geometry, reflectance, info.emitter)?);
                 }
                 _ => return Err("a shape's BSDF is not null or diffuse".into()),
             }
         }
-        for (i, a) in media_shapes.iter().enumerate() {
-            let (c, r) = a.bound;
-            for b in &media_shapes[..i] {
-                if c.distance(b.bound.0) <= r + b.bound.1 {
-                    return Err("two media shapes are within reach of each other".into());
-                }
-            }
-        }
-        for s in &mut surfaces {
-            for (i, m) in media_shapes.iter().enumerate() {
-                if contains(m, s.bound) && s.container < 0.0 {
-                    if m.dielectric.is_some() {
-                        return Err("a surface lies inside a dielectric".into());
-                    }
-                    s.container = i as f32;
-                } else if !clear_of(m, s) {
-                    return Err("a diffuse surface crosses a medium's boundary".into());
-                }
-            }
-        }
-        let mut media = Vec::new();
-        for m in &scene.media {
-            if m.heterogeneous.is_some() && scene.media.len() > 1 {
-                return Err("a heterogeneous medium is not the scene's only one".into());
-            }
-            if !m.sample_emitters {
-                return Err("a medium does not sample emitters".into());
-            }
-            let g = match m.phase {
-                Phase::Isotropic => 0.0,
-                Phase::HenyeyGreenstein { g } if g.abs() <= MAX_ABS_G => g,
-                _ => {
-                    return Err(format!(
-                        "a phase function is not isotropic or hg with |g| <= {MAX_ABS_G}"
-                    ))
-                }
-            };
-            media.push(PacketMedium {
-                sigma_t: m.sigma_t,
-                g,
-            });
-        }
-        let mut environment = Vec3::ZERO;
-        let mut samples_emitters = false;
-        let mut area_emitters = false;
-        for (i, e) in scene.emitters.iter().enumerate() {
-            match e {
-                Emitter::Constant { radiance } if scene.environment == Some(i as u32) => {
-                    environment = *radiance
-                }
-                Emitter::Point { .. } | Emitter::Spot(_) | Emitter::Directional { .. } => {
-                    samples_emitters = true
-                }
-                // On a surface taken above (the shapes loop refuses any other).
-                Emitter::Area { .. } => {
-                    samples_emitters = true;
-                    area_emitters = true;
-                }
-                _ => {
-                    return Err(
-                        "an emitter is not an area, point, spot, directional or constant sky"
-                            .into(),
-                    )
-                }
-            }
-        }
+        place(&media_shapes, &mut surfaces)?;
+        let media = packet_media(scene)?;
+        let (environment, samples_emitters, area_emitters) = emitters_taken(scene)?;
         let camera_shape = match scene.camera_medium {
             None => None,
             Some(m) => match media_shapes.iter().filter(|s| s.medium == m).count() {
@@ -540,4 +433,133 @@ impl PacketSettings {
             nee_ignores_vertex: matches!(settings.gradient, Gradient::AlbedoIgnoringNeeVertex(_)),
         }
     }
+}
+
+/// A `diffuse` surface the packet takes (a sphere, rectangle, disk or cube) with its
+/// bounding sphere, not yet placed in a medium.
+fn diffuse_surface(
+    geometry: &Geometry,
+    reflectance: Vec3,
+    emitter: Option<u32>,
+) -> Result<Surface, String> {
+    let (shape, bound) = match geometry {
+        Geometry::Sphere(s) if !s.flip_normals => {
+            let center = Vec3::from(s.center);
+            let shape = SurfaceShape::Sphere {
+                center,
+                radius2: s.radius * s.radius,
+            };
+            (shape, (center, s.radius))
+        }
+        Geometry::Planar(p) => {
+            let shape = SurfaceShape::Planar {
+                rows: [p.to_local.row(0), p.to_local.row(1), p.to_local.row(2)],
+                normal: Vec3::from(p.normal),
+                disk: p.is_disk,
+            };
+            let center = p.to_world.transform_point3(Vec3::ZERO);
+            let radius = [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
+                .into_iter()
+                .map(|(x, y)| {
+                    p.to_world
+                        .transform_point3(Vec3::new(x, y, 0.0))
+                        .distance(center)
+                })
+                .fold(0.0f32, f32::max);
+            (shape, (center, radius))
+        }
+        g => match medium_kind(g) {
+            Some((MediumKind::Box { rows }, bound)) => (SurfaceShape::Box { rows }, bound),
+            _ => return Err("a diffuse shape is not a rectangle, disk, sphere or cube".into()),
+        },
+    };
+    Ok(Surface {
+        shape,
+        reflectance,
+        emitter,
+        container: -1.0,
+        bound,
+    })
+}
+
+/// Checks that no two media shapes are within reach of each other, and puts each
+/// surface in the medium shape that contains it (or none, where it is clear of all).
+fn place(media_shapes: &[MediumShape], surfaces: &mut [Surface]) -> Result<(), String> {
+    for (i, a) in media_shapes.iter().enumerate() {
+        let (c, r) = a.bound;
+        for b in &media_shapes[..i] {
+            if c.distance(b.bound.0) <= r + b.bound.1 {
+                return Err("two media shapes are within reach of each other".into());
+            }
+        }
+    }
+    for s in surfaces.iter_mut() {
+        for (i, m) in media_shapes.iter().enumerate() {
+            if contains(m, s.bound) && s.container < 0.0 {
+                if m.dielectric.is_some() {
+                    return Err("a surface lies inside a dielectric".into());
+                }
+                s.container = i as f32;
+            } else if !clear_of(m, s) {
+                return Err("a diffuse surface crosses a medium's boundary".into());
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The media's values in the packet, or why one is refused.
+fn packet_media(scene: &Scene) -> Result<Vec<PacketMedium>, String> {
+    let mut media = Vec::new();
+    for m in &scene.media {
+        if m.heterogeneous.is_some() && scene.media.len() > 1 {
+            return Err("a heterogeneous medium is not the scene's only one".into());
+        }
+        if !m.sample_emitters {
+            return Err("a medium does not sample emitters".into());
+        }
+        let g = match m.phase {
+            Phase::Isotropic => 0.0,
+            Phase::HenyeyGreenstein { g } if g.abs() <= MAX_ABS_G => g,
+            _ => {
+                return Err(format!(
+                    "a phase function is not isotropic or hg with |g| <= {MAX_ABS_G}"
+                ))
+            }
+        };
+        media.push(PacketMedium {
+            sigma_t: m.sigma_t,
+            g,
+        });
+    }
+    Ok(media)
+}
+
+/// The constant sky's radiance, whether emitters are sampled and whether there are area
+/// emitters, or why an emitter is refused.
+fn emitters_taken(scene: &Scene) -> Result<(Vec3, bool, bool), String> {
+    let mut environment = Vec3::ZERO;
+    let mut samples_emitters = false;
+    let mut area_emitters = false;
+    for (i, e) in scene.emitters.iter().enumerate() {
+        match e {
+            Emitter::Constant { radiance } if scene.environment == Some(i as u32) => {
+                environment = *radiance
+            }
+            Emitter::Point { .. } | Emitter::Spot(_) | Emitter::Directional { .. } => {
+                samples_emitters = true
+            }
+            // On a surface taken above (the shapes loop refuses any other).
+            Emitter::Area { .. } => {
+                samples_emitters = true;
+                area_emitters = true;
+            }
+            _ => {
+                return Err(
+                    "an emitter is not an area, point, spot, directional or constant sky".into(),
+                )
+            }
+        }
+    }
+    Ok((environment, samples_emitters, area_emitters))
 }

@@ -200,7 +200,6 @@ pub fn surface_normal(ps: &PacketScene, k: usize, p: V3) -> V3 {
 /// ratio tracking's estimate in a heterogeneous one (drawing from `rngs`), 0 where a
 /// surface or a dielectric boundary blocks it.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 pub fn shadow_transmittance(
     scene: &Scene,
     ps: &PacketScene,
