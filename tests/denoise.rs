@@ -12,7 +12,7 @@ use std::path::Path;
 use std::process::Command;
 
 use mediareg::denoise::{self, AuxImages, AuxUse, OidnError};
-use mediareg::image::{self, Image};
+use mediareg::image::Image;
 use mediareg::integrator::{self, aovs, RenderOptions};
 use mediareg::report::metrics::mse_against;
 
@@ -46,8 +46,7 @@ fn render_noisy(name: &str, params: &[(&str, &str)], spp: u32, seed: u64) -> Noi
             ..Default::default()
         },
     );
-    let reference = image::read_exr(&root().join(format!("reference/{name}.exr"))).unwrap();
-    let reference_var = image::read_exr(&root().join(format!("reference/{name}_var.exr"))).unwrap();
+    let (reference, reference_var) = common::reference_images(name);
     let mut seen = r.seen_emission.expect("asked for");
     let seen_raw = seen.clone();
     aovs::sharpen_seen_emission(&scene, &scene.shot, &mut seen);
