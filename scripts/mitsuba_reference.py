@@ -7,7 +7,9 @@ Writes, into --out (default: reference/):
                   (sample variance of the chunk images / number of chunks)
   NAME.json       provenance: Mitsuba version, variant, spp, chunks, seeds, seconds,
                   parameters, and the sha256 of the scene file, its includes and every
-                  asset it names, so a test can tell when a reference has gone stale.
+                  asset it names, so a test can tell when a reference has gone stale;
+                  and the sha256 of NAME.exr and NAME_var.exr as written here
+                  (images_sha256), so an image replaced afterwards is refused.
 
 Each chunk renders spp/chunks samples per pixel with its own seed; chunks are
 independent, so their spread estimates the variance of the mean.
@@ -54,6 +56,12 @@ def sha256(path):
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def image_hashes(out):
+    """images_sha256 of the reference at path prefix `out`: NAME.exr's and NAME_var.exr's
+    sha256, keyed by file name (mediareg refuses images that no longer match)."""
+    return {os.path.basename(f): sha256(f) for f in (out + ".exr", out + "_var.exr")}
 
 
 def resolve(name, search):
@@ -167,8 +175,9 @@ def render_chunk(mi, scenes, spp, seed, alpha=False):
 
 
 def provenance(version, variant, scene, chunks, spp_chunk, seeds, seconds, shape, params,
-               search, crop, hashes, derivative, step):
-    """NAME.json's content (see the top). Shared with mediareg.cluster.mitsuba_reference."""
+               search, crop, hashes, derivative, step, images=None):
+    """NAME.json's content (see the top). Shared with mediareg.cluster.mitsuba_reference.
+    `images`: image_hashes() of the images just written."""
     return {
         "scene": os.path.relpath(os.path.abspath(scene)),
         "mitsuba_version": version,
@@ -185,6 +194,7 @@ def provenance(version, variant, scene, chunks, spp_chunk, seeds, seconds, shape
         "height": shape[0],
         **({"crop": crop} if crop else {}),
         "sha256": hashes,
+        **({"images_sha256": images} if images else {}),
         "made_by": "scripts/mitsuba_reference.py",
         **({"derivative": {"param": derivative, "step": step,
                            "scheme": "Richardson central differences, common random numbers"}}
@@ -294,7 +304,7 @@ def main():
         write("_var", m2 / (n - 1) / n)
         meta = provenance(mi.__version__, variant, args.scene, n, spp_chunk, seeds, seconds,
                           mean.shape, params, args.search, crop, hashes, args.derivative,
-                          args.step)
+                          args.step, images=image_hashes(out))
         with open(out + ".json.tmp", "w") as f:
             json.dump(meta, f, indent=2)
             f.write("\n")

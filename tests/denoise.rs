@@ -1,7 +1,7 @@
 //! `--denoise oidn` (issue 40): Intel Open Image Denoise lowers the error against the
 //! Mitsuba 3 reference by a stated margin on a mesh medium, a surface scene and the
-//! Candle (a directly visible flame), where an identity "denoiser" and a wide box blur
-//! do not; its output is the same for the same input (to its rounding); bad input and a
+//! Candle (a directly visible flame), where a weak denoiser (a small blend toward a 3×3
+//! box filter) and a wide box blur do not; its output is the same for the same input (to its rounding); bad input and a
 //! missing or wrong library are clear errors.
 //!
 //! Needs the library (`scripts/fetch_oidn`, which `scripts/test` runs).
@@ -12,7 +12,7 @@ use std::path::Path;
 use std::process::Command;
 
 use mediareg::denoise::{self, AuxImages, AuxUse, OidnError};
-use mediareg::image::{self, Image};
+use mediareg::image::Image;
 use mediareg::integrator::{self, aovs, RenderOptions};
 use mediareg::report::metrics::mse_against;
 
@@ -23,6 +23,9 @@ use common::{load_seeded, root};
 struct Noisy {
     image: Image,
     seen: Image,
+    /// The seen emission as rendered, before `sharpen_seen_emission`: `image` minus it
+    /// is exactly the scattered light of the same samples.
+    seen_raw: Image,
     aux: AuxImages,
     reference: Image,
     reference_var: Image,
@@ -43,11 +46,12 @@ fn render_noisy(name: &str, params: &[(&str, &str)], spp: u32, seed: u64) -> Noi
             ..Default::default()
         },
     );
-    let reference = image::read_exr(&root().join(format!("reference/{name}.exr"))).unwrap();
-    let reference_var = image::read_exr(&root().join(format!("reference/{name}_var.exr"))).unwrap();
+    let (reference, reference_var) = common::reference_images(name);
     let mut seen = r.seen_emission.expect("asked for");
+    let seen_raw = seen.clone();
     aovs::sharpen_seen_emission(&scene, &scene.shot, &mut seen);
     Noisy {
+        seen_raw,
         aux: aovs::first_hit_aovs(&scene, &scene.shot),
         seen,
         image: r.image,
@@ -88,10 +92,37 @@ fn box_blur(img: &Image, r: i64) -> Image {
     }
 }
 
+/// A weak denoiser: the scattered light (the render less its seen emission, kept out as
+/// OIDN's input keeps it out) blended `WEAK_BLEND` of the way toward its 3×3 box filter.
+/// It lowers the error a little (ratios 0.68 to 0.96 here), so a margin that it passes
+/// would not tell OIDN from a trivial filter.
+fn weak_denoise(n: &Noisy) -> Image {
+    let scattered = Image {
+        pixels: (n.image.pixels.iter().zip(&n.seen_raw.pixels))
+            .map(|(l, e)| std::array::from_fn(|c| (l[c] - e[c]).max(0.0)))
+            .collect(),
+        ..n.image.clone()
+    };
+    let boxed = box_blur(&scattered, 1);
+    let pixels = (scattered
+        .pixels
+        .iter()
+        .zip(&boxed.pixels)
+        .zip(&n.seen_raw.pixels))
+    .map(|((s, b), e)| std::array::from_fn(|c| e[c] + s[c] + WEAK_BLEND * (b[c] - s[c])))
+    .collect();
+    Image {
+        pixels,
+        ..n.image.clone()
+    }
+}
+const WEAK_BLEND: f32 = 0.2;
+
 /// The scenes of the margin test: a mesh medium, a surface scene, the Candle; each at a
 /// low spp, with the largest denoised/noisy ratio of corrected MSE allowed over the
-/// seeds. The margins sit between what OIDN reaches (`measure_margins`, ignored, prints
-/// them) and what an identity or a box blur of radius 3 reaches.
+/// seeds. The margins sit between what OIDN reaches and what the weak denoiser or a box
+/// blur of radius 3 reaches: the test prints all three per case and seed (run it with
+/// --nocapture to measure them).
 const CASES: &[(&str, u32, f64)] = &[
     ("bunny_medium", 16, 0.4),
     ("cbox", 16, 0.4),
@@ -100,37 +131,41 @@ const CASES: &[(&str, u32, f64)] = &[
 const SEEDS: [u64; 3] = [11, 12, 13];
 
 /// Per case and seed: the ratios to the noisy render's corrected MSE of OIDN (the
-/// default: seen emission kept out, no auxiliary images), the identity and a box blur.
+/// default: seen emission kept out, no auxiliary images), the weak denoiser and a box blur.
 fn ratios(name: &str, spp: u32, seed: u64) -> (f64, f64, f64) {
     let n = render_noisy(name, &[], spp, seed);
     let noisy = error(&n, &n.image);
     let denoised = denoise::oidn(&n.image, Some(&n.seen), Some(&n.aux), AuxUse::default()).unwrap();
-    let identity = n.image.clone();
+    let weak = weak_denoise(&n);
     let blurred = box_blur(&n.image, 3);
     (
         error(&n, &denoised) / noisy,
-        error(&n, &identity) / noisy,
+        error(&n, &weak) / noisy,
         error(&n, &blurred) / noisy,
     )
 }
 
 #[test]
-fn oidn_lowers_the_error_by_the_stated_margin_where_identity_and_blur_do_not() {
+fn oidn_lowers_the_error_by_the_stated_margin_where_weak_denoising_and_blur_do_not() {
     for &(name, spp, margin) in CASES {
         for seed in SEEDS {
-            let (oidn, identity, blur) = ratios(name, spp, seed);
+            let (oidn, weak, blur) = ratios(name, spp, seed);
             eprintln!(
-                "{name} seed {seed}: oidn {oidn:.3}, identity {identity:.3}, box blur {blur:.3}"
+                "{name} seed {seed}: oidn {oidn:.3}, weak denoiser {weak:.3}, box blur {blur:.3}"
             );
             assert!(
                 oidn < margin,
                 "{name} seed {seed}: OIDN's MSE ratio {oidn:.3} ≥ {margin}"
             );
-            // Power: the same criterion rejects a denoiser that does nothing, and one
-            // that blurs.
+            // Power: the same criterion rejects a denoiser that helps a little (it must
+            // help, or rejecting it shows nothing), and one that blurs.
             assert!(
-                identity >= margin,
-                "{name}: the identity passes ({identity:.3})"
+                weak < 1.0,
+                "{name} seed {seed}: the weak denoiser does not lower the error ({weak:.3})"
+            );
+            assert!(
+                weak >= margin,
+                "{name} seed {seed}: the weak denoiser passes ({weak:.3})"
             );
             assert!(blur >= margin, "{name}: a box blur passes ({blur:.3})");
         }

@@ -641,6 +641,100 @@ fn luminance_alpha_exr_is_written_and_read() {
     }
 }
 
+/// films.xml as a Mitsuba 2 file (version 2.0.0) whose film asks `component_format`
+/// `value`, its light moved into view (seen directly, above 1), in a fresh folder.
+fn films_v2_with_component_format(value: &str) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(root().join("mitsuba_scenes/films.xml")).unwrap();
+    let pixel_format = r#"<string name="pixel_format" value="$pixel_format"/>"#;
+    let light = r#"<point name="center" x="0" y="2" z="1"/>"#;
+    for part in [pixel_format, light, r#"version="3.0.0""#] {
+        assert!(text.contains(part), "films.xml has no {part}");
+    }
+    let text = text
+        .replace(r#"version="3.0.0""#, r#"version="2.0.0""#)
+        .replace(light, r#"<point name="center" x="0" y="1.2" z="1"/>"#)
+        .replace(
+            pixel_format,
+            &format!(r#"{pixel_format}<string name="component_format" value="{value}"/>"#),
+        );
+    let dir = common::scene_text::tmp_dir("drop_in_rest", &format!("component_{value}"));
+    common::scene_text::write(&dir, "films_v2.xml", &text)
+}
+
+/// A Mitsuba 2 file whose `hdrfilm` asks `component_format` uint32 loads and renders as
+/// in Mitsuba 3: `mediareg render` writes R, G, B as uint32 samples (Mitsuba's
+/// `Imf::UINT` channels), each the render's value quantized as Mitsuba quantizes it
+/// (clamped to [0, 1]: the light seen directly saturates), and `read_exr` reads them
+/// back normalized, as Mitsuba reads them. An unknown component format is still an
+/// error naming it and the formats there are.
+#[test]
+fn uint32_film_is_written_as_mitsuba_writes_it() {
+    use exr::prelude::*;
+    use mediareg::scene::film::quantize_uint32;
+    let scene = films_v2_with_component_format("uint32");
+    let out = scene.with_file_name("out.exr");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .args(["render", scene.to_str().unwrap(), "--spp", "4", "--no-png"])
+        .args([
+            "-t",
+            "1",
+            "-D",
+            "pixel_format=rgb",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+
+    let rgb = [("pixel_format", "rgb")];
+    let s = common::load_seeded(&scene, &rgb, 4, 0);
+    let want = mediareg::integrator::render(&s, &s.shot, &Default::default())
+        .image
+        .pixels;
+    let file = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(&out)
+        .unwrap();
+    let channels = &file.layer_data.channel_data.list;
+    let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
+    assert_eq!(names, ["B", "G", "R"]);
+    for (c, channel) in channels.iter().enumerate().map(|(i, ch)| (2 - i, ch)) {
+        let FlatSamples::U32(samples) = &channel.sample_data else {
+            panic!(
+                "channel {} is not uint32: {:?}",
+                channel.name, channel.sample_data
+            );
+        };
+        let quantized: Vec<u32> = want.iter().map(|p| quantize_uint32(p[c])).collect();
+        assert_eq!(samples, &quantized, "channel {}", channel.name);
+    }
+    let values = || want.iter().flatten();
+    assert!(values().any(|&v| v > 1.0), "no pixel saturates");
+    assert!(values().any(|&v| v > 0.0 && v < 1.0), "no pixel in (0, 1)");
+
+    let read = mediareg::image::read_exr(&out).unwrap();
+    for (got, v) in read.pixels.iter().flatten().zip(values()) {
+        assert!((got - v.clamp(0.0, 1.0)).abs() < 1e-7, "{got} read for {v}");
+    }
+
+    let scene = films_v2_with_component_format("uint16");
+    let loaded = mediareg::xml::load_file(&scene, &common::options(&[])).map_err(|e| e.to_string());
+    let loaded = load_or_build_error("uint16", loaded);
+    assert!(
+        loaded.contains("component_format \"uint16\"") && loaded.contains("uint32"),
+        "{loaded}"
+    );
+}
+
 /// The luminance (luminance_alpha film) against Mitsuba 3's Y.
 #[test]
 fn luminance_matches_mitsuba() {

@@ -105,10 +105,7 @@ fn measure_never_lose() {
             continue;
         }
         let path = root().join(format!("mitsuba_scenes/{file}.xml"));
-        let reference_mean =
-            image::read_exr(&root().join(format!("reference/{reference}.exr"))).unwrap();
-        let reference_var =
-            image::read_exr(&root().join(format!("reference/{reference}_var.exr"))).unwrap();
+        let (reference_mean, reference_var) = common::reference_images(reference);
         let err = |img: &image::Image| mse_against(img, &reference_mean, &reference_var).1;
         let with_seen = RenderOptions {
             seen_emission: true,

@@ -10,7 +10,6 @@
 mod common;
 
 use mediareg::denoise::AuxUse;
-use mediareg::image;
 use mediareg::integrator::{self, denoised, RenderOptions};
 use mediareg::regularize::{self, choices, Choices};
 use mediareg::report::metrics::mse_against;
@@ -38,8 +37,7 @@ fn choice_and_truth(name: &str, spp: u32, seed: u64) -> (bool, bool, f64, f64, f
     );
     let out = one_frame(&scene);
     let check = out.oidn_check.expect("enough spp for the check");
-    let reference = image::read_exr(&root().join(format!("reference/{name}.exr"))).unwrap();
-    let var = image::read_exr(&root().join(format!("reference/{name}_var.exr"))).unwrap();
+    let (reference, var) = common::reference_images(name);
     let shot = scene.shot.with(spp, seed + 1000);
     let r = integrator::render(
         &scene,

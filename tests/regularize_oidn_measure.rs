@@ -4,7 +4,7 @@
 mod common;
 
 use mediareg::denoise::{self, AuxUse};
-use mediareg::image::{self, Image};
+use mediareg::image::Image;
 use mediareg::integrator::{self, aovs, RenderOptions};
 use mediareg::regularize::sequence::{image_centre_point, CameraPath};
 use mediareg::regularize::{self, Method, OidnUse, Options, Reproject};
@@ -47,8 +47,7 @@ fn measure_oidn_placement() {
             spp,
             seed,
         );
-        let reference = image::read_exr(&root().join(format!("reference/{name}.exr"))).unwrap();
-        let var = image::read_exr(&root().join(format!("reference/{name}_var.exr"))).unwrap();
+        let (reference, var) = common::reference_images(name);
         let err = |img: &Image| mse_against(img, &reference, &var).1;
         let plain = integrator::render(
             &scene,

@@ -66,6 +66,7 @@ fn sphere_under_sky() -> SceneParts {
                 crop_size: (SIZE, SIZE),
                 rfilter: Rfilter::Box,
                 pixel_format: Default::default(),
+                component_format: Default::default(),
             },
             spp: 4,
             seed: 1,

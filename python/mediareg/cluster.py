@@ -137,9 +137,10 @@ def mitsuba_reference(scene_path, spp, chunks, seed=1000, out="reference", name=
         merged = mediareg.merge(paths, out=os.path.join(out, name + ".exr"))
     seconds = time.perf_counter() - t0
     _, version, used_variant = results[0]
+    images = ref.image_hashes(os.path.join(out, name))
     meta = ref.provenance(version, used_variant, scene_path, chunks, spp // chunks, seeds,
                           seconds, merged["image"].shape, params, search_path or [], crop,
-                          hashes, derivative, step)
+                          hashes, derivative, step, images=images)
     meta["made_by"] = "mediareg.cluster.mitsuba_reference (scripts/mitsuba_reference.py's chunks on Ray)"
     with open(os.path.join(out, name + ".json.tmp"), "w") as f:
         json.dump(meta, f, indent=2)

@@ -108,6 +108,7 @@ def test_ray_cluster_render_matches_a_single_render(local_ray, tmp_path):
 
 def test_ray_mitsuba_reference_equals_the_script(local_ray, tmp_path):
     require("mitsuba", "MEDIAREG_NO_MITSUBA")
+    import hashlib
     import json
     import subprocess
     import sys
@@ -134,3 +135,9 @@ def test_ray_mitsuba_reference_equals_the_script(local_ray, tmp_path):
     b = json.loads((tmp_path / "script" / "cbox.json").read_text())
     for key in ["spp", "chunks", "seeds", "sha256", "variant", "params", "width", "height"]:
         assert a[key] == b[key], key
+    # Each records its own images' sha256 (the files differ: written by mediareg's merge
+    # and by Mitsuba).
+    for folder, meta in [("ray", a), ("script", b)]:
+        assert sorted(meta["images_sha256"]) == ["cbox.exr", "cbox_var.exr"], folder
+        for f, want in meta["images_sha256"].items():
+            assert hashlib.sha256((tmp_path / folder / f).read_bytes()).hexdigest() == want, f

@@ -9,6 +9,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
+use crate::scene::film::{dequantize_uint32, quantize_uint32, ComponentFormat};
+
 /// A rendered image: the crop window, row-major linear RGB.
 #[derive(Clone, Debug)]
 pub struct Image {
@@ -100,9 +102,22 @@ pub fn write_render_exr(path: &Path, img: &Image, spp: Option<u64>) -> Result<()
 /// [`write_render_exr`] writes it.
 pub fn write_channels_exr(
     path: &Path,
+    size: (usize, usize),
+    channels: Vec<(&str, Vec<f32>)>,
+    spp: Option<u64>,
+) -> Result<()> {
+    write_channels_exr_as(path, size, channels, spp, ComponentFormat::Float32)
+}
+
+/// [`write_channels_exr`] with the film's `component_format`: float32 samples, or for
+/// `uint32` unsigned 32-bit ones quantized as Mitsuba 3 writes them
+/// ([`quantize_uint32`]); [`read_exr`] reads those back normalized, as Mitsuba does.
+pub fn write_channels_exr_as(
+    path: &Path,
     (width, height): (usize, usize),
     channels: Vec<(&str, Vec<f32>)>,
     spp: Option<u64>,
+    format: ComponentFormat,
 ) -> Result<()> {
     use exr::prelude::*;
     if channels
@@ -116,7 +131,15 @@ pub fn write_channels_exr(
     }
     let list = channels
         .into_iter()
-        .map(|(name, v)| AnyChannel::new(name, FlatSamples::F32(v)))
+        .map(|(name, v)| {
+            let samples = match format {
+                ComponentFormat::Uint32 => {
+                    FlatSamples::U32(v.into_iter().map(quantize_uint32).collect())
+                }
+                ComponentFormat::Float16 | ComponentFormat::Float32 => FlatSamples::F32(v),
+            };
+            AnyChannel::new(name, samples)
+        })
         .collect();
     let encoding = Encoding {
         line_order: LineOrder::Increasing,
@@ -160,7 +183,15 @@ fn read_exr_channels(path: &Path) -> Result<(usize, usize, Channels)> {
         .channel_data
         .list
         .iter()
-        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .map(|c| {
+            let values = match &c.sample_data {
+                // Integer channels hold [0, 1] scaled to the full range (Mitsuba's
+                // Normalized flag): not the integer's value.
+                FlatSamples::U32(v) => v.iter().map(|&q| dequantize_uint32(q)).collect(),
+                other => other.values_as_f32().collect(),
+            };
+            (c.name.to_string(), values)
+        })
         .collect();
     Ok((layer.size.width(), layer.size.height(), channels))
 }
@@ -193,15 +224,23 @@ pub fn read_exr_int_attribute(path: &Path, name: &str) -> Result<Option<i32>> {
     }))
 }
 
-/// Reads the RGB channels of an EXR (any of half/float/uint channels R, G, B); a
+/// Reads the RGB channels of an EXR (any of half/float/uint channels R, G, B; uint as
+/// Mitsuba reads it, [0, 1] over the integer's range: a `uint32` film's file); a
 /// luminance EXR (a `Y` channel, as a `luminance` film writes) reads as grey, Y in all
 /// three.
 pub fn read_exr(path: &Path) -> Result<Image> {
     use exr::prelude::*;
     if let Ok((width, height, channels)) = read_exr_channels(path) {
-        let has = |n: &str| channels.iter().any(|(c, _)| c == n);
-        if has("Y") && !has("R") {
-            let y = &channels.iter().find(|(c, _)| c == "Y").unwrap().1;
+        let get = |n: &str| channels.iter().find(|(c, _)| c == n).map(|(_, v)| v);
+        if let (Some(r), Some(g), Some(b)) = (get("R"), get("G"), get("B")) {
+            let pixels = (0..width * height).map(|i| [r[i], g[i], b[i]]).collect();
+            return Ok(self::Image {
+                width,
+                height,
+                pixels,
+            });
+        }
+        if let Some(y) = get("Y") {
             return Ok(self::Image {
                 width,
                 height,

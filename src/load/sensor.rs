@@ -9,7 +9,7 @@ use super::{to_mat4, unsupported, Builder};
 use crate::error::Result;
 use crate::geometry::Bounds;
 use crate::scene::camera::{fov_x_degrees, PerspectiveCamera};
-use crate::scene::film::{Film, PixelFormat, Rfilter};
+use crate::scene::film::{ComponentFormat, Film, PixelFormat, Rfilter};
 use crate::xml::description::{ObjId, ObjectKind};
 
 impl Builder<'_> {
@@ -182,15 +182,16 @@ impl Builder<'_> {
                 p.error(format!("pixel_format \"{name}\" is not supported"))
                     .with_hint("use rgb, rgba, luminance or luminance_alpha (Mitsuba's xyz and xyza are not written by mediareg)")
             })?;
-        // Storage precision only: mediareg always writes float32.
-        let component_format = p
+        let name = p
             .string("component_format", "float16")?
             .to_ascii_lowercase();
-        if !["float16", "float32"].contains(&component_format.as_str()) {
-            return Err(p.error(format!(
-                "component_format \"{component_format}\": use float16 or float32"
-            )));
-        }
+        let component_format = ComponentFormat::ALL
+            .into_iter()
+            .find(|f| f.name() == name)
+            .ok_or_else(|| {
+                p.error(format!("component_format \"{name}\" is not supported"))
+                    .with_hint("use float16, float32 or uint32 (as Mitsuba 3)")
+            })?;
         let file_format = p.string("file_format", "openexr")?.to_ascii_lowercase();
         if !["openexr", "exr"].contains(&file_format.as_str()) {
             return Err(p.error(format!(
@@ -212,6 +213,7 @@ impl Builder<'_> {
             crop_size: (cw as usize, ch as usize),
             rfilter,
             pixel_format,
+            component_format,
         })
     }
 
@@ -241,5 +243,6 @@ fn default_film() -> Film {
         crop_size: (768, 576),
         rfilter: Rfilter::Gaussian { stddev: 0.5 },
         pixel_format: PixelFormat::Rgb,
+        component_format: ComponentFormat::Float16,
     }
 }

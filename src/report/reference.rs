@@ -27,6 +27,13 @@ pub struct ReferenceMeta {
     #[serde(default)]
     pub crop: Option<[usize; 4]>,
     pub sha256: BTreeMap<String, String>,
+    /// The sha256 of its own images, `NAME.exr` and `NAME_var.exr`, as the script wrote
+    /// them: an image replaced afterwards (say by a render of ours) is refused.
+    #[serde(default)]
+    pub images_sha256: BTreeMap<String, String>,
+    /// The scene file, as the script was given it (for the command that remakes it).
+    #[serde(default)]
+    pub scene: Option<String>,
 }
 
 pub struct Reference {
@@ -50,10 +57,72 @@ fn remake_hint(name: &str, xml: &Path, params: &[(String, String)], dir: &Path) 
     )
 }
 
+/// The command that remakes reference `name` in `dir` from what its JSON records.
+fn regenerate_hint(meta: &ReferenceMeta, dir: &Path, name: &str) -> String {
+    let defines: String = (meta.params.iter())
+        .map(|(k, v)| format!(" -D {k}={v}"))
+        .collect();
+    let crop = (meta.crop)
+        .map(|[x, y, w, h]| format!(" --crop {x},{y},{w},{h}"))
+        .unwrap_or_default();
+    format!(
+        "regenerate it with Mitsuba 3: .venv/bin/python scripts/mitsuba_reference.py {} --spp {} --chunks {}{defines}{crop} -a .cache/meshes --out {} --name {name} (with --alpha or --derivative as it was made), which writes the images and their sha256",
+        meta.scene.as_deref().unwrap_or("SCENE.xml"),
+        meta.spp,
+        meta.chunks,
+        dir.display()
+    )
+}
+
+/// Reads reference `name`'s images, `dir/NAME.exr` and `NAME_var.exr`, after checking
+/// each against the sha256 `NAME.json` records for it (`images_sha256`): the mean and
+/// the variance of the mean, and the JSON. A mismatch or a missing record is an error
+/// naming the file and how to regenerate it.
+pub fn read_reference_images(dir: &Path, name: &str) -> Result<(Image, Image, ReferenceMeta)> {
+    let json_path = dir.join(format!("{name}.json"));
+    let text = std::fs::read_to_string(&json_path)
+        .with_context(|| format!("no Mitsuba 3 reference {name}: {}", json_path.display()))?;
+    let meta: ReferenceMeta = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a reference description", json_path.display()))?;
+    let mut images = Vec::new();
+    for path in [
+        dir.join(format!("{name}.exr")),
+        dir.join(format!("{name}_var.exr")),
+    ] {
+        // Keyed by file name, as the scene's files are (`name` may hold a folder).
+        let file = (path.file_name())
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let Some(want) = meta.images_sha256.get(&file) else {
+            bail!(
+                "{} records no sha256 of {file} (\"images_sha256\"), so nothing shows that {} is the image Mitsuba 3 rendered; {}",
+                json_path.display(),
+                path.display(),
+                regenerate_hint(&meta, dir, name)
+            );
+        };
+        let got = sha256_file(&path)?;
+        if got != *want {
+            bail!(
+                "{} has sha256 {got}, not the {want} that {} records: it is not the image Mitsuba 3 rendered for this reference (a render of ours copied over it?); restore it (git checkout -- {}) or {}",
+                path.display(),
+                json_path.display(),
+                path.display(),
+                regenerate_hint(&meta, dir, name)
+            );
+        }
+        images.push(image::read_exr(&path)?);
+    }
+    let var = images.pop().expect("two images");
+    let mean = images.pop().expect("two images");
+    Ok((mean, var, meta))
+}
+
 impl Reference {
     /// Loads `dir/NAME.exr`, `NAME_var.exr` and `NAME.json`, and checks that the
     /// reference was made from the files `desc` reads (sha256 of the scene, its includes
-    /// and assets) and the `-D` parameters it was loaded with (`load`).
+    /// and assets) and the `-D` parameters it was loaded with (`load`), and that its
+    /// images are the ones the script wrote ([`read_reference_images`]).
     pub fn load(
         dir: &Path,
         name: &str,
@@ -111,8 +180,7 @@ impl Reference {
             );
         }
         let path = dir.join(format!("{name}.exr"));
-        let mean = image::read_exr(&path)?;
-        let var = image::read_exr(&dir.join(format!("{name}_var.exr")))?;
+        let (mean, var, _) = read_reference_images(dir, name)?;
         if (mean.width, mean.height) != (meta.width, meta.height)
             || (var.width, var.height) != (meta.width, meta.height)
         {
@@ -129,5 +197,104 @@ impl Reference {
             var,
             meta,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// reference/films (.json, .exr, _var.exr) copied into a fresh folder.
+    fn films_copy(tag: &str) -> PathBuf {
+        let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference");
+        let dir = std::env::temp_dir()
+            .join(format!("mediareg_reference_{}", std::process::id()))
+            .join(tag);
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        for f in ["films.json", "films.exr", "films_var.exr"] {
+            std::fs::copy(from.join(f), dir.join(f)).unwrap();
+        }
+        dir
+    }
+
+    fn refused(dir: &Path) -> String {
+        match read_reference_images(dir, "films") {
+            Ok(_) => panic!(
+                "{}: a replaced or unrecorded image was taken",
+                dir.display()
+            ),
+            Err(e) => format!("{e:#}"),
+        }
+    }
+
+    /// Every committed reference's images are the ones its JSON records, those no test
+    /// compares against included.
+    #[test]
+    fn every_committed_reference_has_its_recorded_images() {
+        fn walk(dir: &Path, found: &mut Vec<PathBuf>) {
+            for e in std::fs::read_dir(dir).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    walk(&p, found);
+                } else if p.extension().is_some_and(|x| x == "json") {
+                    found.push(p);
+                }
+            }
+        }
+        let mut jsons = Vec::new();
+        walk(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("reference"),
+            &mut jsons,
+        );
+        assert!(jsons.len() > 50, "{} references", jsons.len());
+        for json in jsons {
+            let name = json.file_stem().unwrap().to_string_lossy();
+            if let Err(e) = read_reference_images(json.parent().unwrap(), &name) {
+                panic!("{e:#}");
+            }
+        }
+    }
+
+    /// The committed images load; either one replaced by an image of ours (the same
+    /// size, 0.1% off) is refused naming the file, its JSON and how to regenerate it;
+    /// a JSON that records no sha256 of its images is refused too.
+    #[test]
+    fn reference_images_must_be_the_ones_the_script_wrote() {
+        let dir = films_copy("intact");
+        let (mean, var, meta) = read_reference_images(&dir, "films").unwrap();
+        assert_eq!((mean.width, mean.height), (meta.width, meta.height));
+        assert_eq!((var.width, var.height), (meta.width, meta.height));
+
+        for (file, img) in [("films.exr", &mean), ("films_var.exr", &var)] {
+            let dir = films_copy(file);
+            let ours = Image {
+                pixels: img.pixels.iter().map(|p| p.map(|c| c * 1.001)).collect(),
+                ..img.clone()
+            };
+            image::write_exr(&dir.join(file), &ours).unwrap();
+            let e = refused(&dir);
+            for part in [
+                file,
+                "films.json",
+                "scripts/mitsuba_reference.py",
+                "git checkout",
+            ] {
+                assert!(e.contains(part), "{file}: no \"{part}\" in: {e}");
+            }
+        }
+
+        let dir = films_copy("unrecorded");
+        let json = dir.join("films.json");
+        let mut value: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert!(value
+            .as_object_mut()
+            .unwrap()
+            .remove("images_sha256")
+            .is_some());
+        std::fs::write(&json, value.to_string()).unwrap();
+        let e = refused(&dir);
+        assert!(e.contains("records no sha256 of films.exr"), "{e}");
     }
 }

@@ -224,6 +224,15 @@ pub fn reference(name: &str, scene: &Path) -> Reference {
     }
 }
 
+/// reference/NAME.exr and NAME_var.exr (the mean and the variance of the mean), checked
+/// against the sha256 their JSON records, for tests that take the images alone.
+pub fn reference_images(name: &str) -> (mediareg::image::Image, mediareg::image::Image) {
+    let (mean, var, _) =
+        mediareg::report::reference::read_reference_images(&root().join("reference"), name)
+            .unwrap_or_else(|e| panic!("{e:#}"));
+    (mean, var)
+}
+
 /// Per-value outlier level and whole-test false-alarm probability of the comparisons.
 pub const ALPHA: f64 = 1e-3;
 pub const FALSE_ALARM: f64 = 1e-6;

@@ -165,7 +165,8 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         }
     };
     let shown = denoised.as_ref().unwrap_or(img);
-    let format = scene_data.shot.film.pixel_format;
+    let film = &scene_data.shot.film;
+    let format = film.pixel_format;
     let alpha = rendered.alpha.as_ref();
     if let Some(d) = &denoised {
         let mut d = d.clone();
@@ -174,13 +175,13 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
                 *p = [mediareg::scene::film::luminance(*p); 3];
             }
         }
-        write_film_exr(&out_exr, &d, alpha, format, spp)?;
+        write_film_exr(&out_exr, &d, alpha, film, spp)?;
         written.push(out_exr.display().to_string());
         let noisy = sibling(&out_exr, "_noisy");
-        write_film_exr(&noisy, img, alpha, format, spp)?;
+        write_film_exr(&noisy, img, alpha, film, spp)?;
         written.push(noisy.display().to_string());
     } else {
-        write_film_exr(&out_exr, img, alpha, format, spp)?;
+        write_film_exr(&out_exr, img, alpha, film, spp)?;
         written.push(out_exr.display().to_string());
     }
     if let Some(a) = &aux {
@@ -258,15 +259,18 @@ fn write_ray_log(
 }
 
 /// Writes `img` as the film's `pixel_format` asks: R, G, B; Y (Mitsuba's luminance,
-/// which the image already holds in every channel); and the alpha A where asked.
+/// which the image already holds in every channel); and the alpha A where asked; in
+/// float32 samples, or uint32 ones where its `component_format` asks.
 fn write_film_exr(
     out: &Path,
     img: &image::Image,
     alpha: Option<&image::Image>,
-    format: mediareg::scene::film::PixelFormat,
+    film: &mediareg::scene::film::Film,
     spp: Option<u64>,
 ) -> Result<()> {
-    if format == mediareg::scene::film::PixelFormat::Rgb {
+    use mediareg::scene::film::{ComponentFormat, PixelFormat};
+    let format = film.pixel_format;
+    if format == PixelFormat::Rgb && film.component_format != ComponentFormat::Uint32 {
         return image::write_render_exr(out, img, spp);
     }
     let channel = |c: usize, of: &image::Image| of.pixels.iter().map(|p| p[c]).collect();
@@ -282,5 +286,11 @@ fn write_film_exr(
     if let Some(a) = alpha {
         channels.push(("A", channel(0, a)));
     }
-    image::write_channels_exr(out, (img.width, img.height), channels, spp)
+    image::write_channels_exr_as(
+        out,
+        (img.width, img.height),
+        channels,
+        spp,
+        film.component_format,
+    )
 }

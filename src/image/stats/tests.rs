@@ -284,3 +284,30 @@ fn global_threshold_has_welch_satterthwaite_dof() {
     let c = compare(&a, &b, PixelLayout::independent(4), 0.15, 0.45);
     assert!((c.global_threshold - T7_975).abs() < 1e-6, "{c}");
 }
+
+/// At ν = 1e9 (statrs' t quantile does not finish there) the thresholds are the normal
+/// quantile: pixel, block and global tests at 0.975 (the setup of the test above).
+#[test]
+fn huge_degrees_of_freedom_give_the_normal_quantile() {
+    let a = Estimate::from_moments(vec![[1.0; 3]; 8], vec![[2.0; 3]; 8], 1e9);
+    let c = compare(&a, &a.clone(), PixelLayout::independent(4), 0.15, 0.45);
+    for threshold in [c.pixels.threshold, c.blocks.threshold, c.global_threshold] {
+        assert!((threshold - Z_975).abs() < 1e-9, "{c}");
+    }
+}
+
+/// Just below the switch the quantile is Student's t, just above the normal's; they
+/// differ by the first Cornish–Fisher term z (z² + 1) / (4ν) (Abramowitz & Stegun
+/// 26.7.5), under 1e-3 of z out to 6σ.
+#[test]
+fn the_switch_to_the_normal_quantile_is_seamless() {
+    for p in [0.975, 1.0 - 1e-3 / 6.0, 1.0 - 1e-9] {
+        let t = t_quantile(NORMAL_ABOVE_DOF, p);
+        let z = t_quantile(NORMAL_ABOVE_DOF * (1.0 + 1e-9), p);
+        let first_order = z * (z * z + 1.0) / (4.0 * NORMAL_ABOVE_DOF);
+        assert!(
+            (t - z - first_order).abs() < 1e-5 && (t - z) / z < 1e-3,
+            "p {p}: t {t}, normal {z}"
+        );
+    }
+}
