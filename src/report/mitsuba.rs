@@ -16,6 +16,26 @@ pub struct MitsubaRunner {
     pub script: PathBuf,
 }
 
+/// What `scripts/mitsuba_render.py` is asked to render: the scene file loaded as
+/// Mitsuba's `load_file` loads it (with `-D` defines, `-a` search folders), rendered
+/// at `spp`, or at as many spp as fit in `budget` seconds, from `seed`.
+#[derive(Clone, Copy, Debug)]
+pub struct MitsubaRequest<'a> {
+    /// The scene's XML file.
+    pub scene: &'a Path,
+    /// Where the image goes (EXR).
+    pub out: &'a Path,
+    /// `-D name=value`: the scene file's parameters.
+    pub defines: &'a [(String, String)],
+    /// `-a`: folders the file resolver searches.
+    pub search: &'a [PathBuf],
+    /// Samples per pixel; when set, `budget` is ignored.
+    pub spp: Option<u32>,
+    /// Seconds to spend when `spp` is `None` (one of the two must be set).
+    pub budget: Option<f64>,
+    pub seed: u64,
+}
+
 /// What the script reports.
 #[derive(Clone, Debug, Deserialize)]
 pub struct MitsubaRender {
@@ -51,17 +71,11 @@ impl MitsubaRunner {
         }
     }
 
-    /// Renders `scene` into `out` (EXR) at `spp`, or for about `budget` seconds.
-    #[allow(clippy::too_many_arguments)]
+    /// Renders `request.scene` into `request.out` (EXR) at `request.spp`, or for about
+    /// `request.budget` seconds.
     pub fn render(
         &self,
-        scene: &Path,
-        out: &Path,
-        params: &[(String, String)],
-        search: &[PathBuf],
-        spp: Option<u32>,
-        budget: Option<f64>,
-        seed: u64,
+        request: &MitsubaRequest,
     ) -> std::result::Result<MitsubaRender, Unavailable> {
         if !self.script.exists() {
             return Err(Unavailable::NotInstalled(format!(
@@ -71,20 +85,20 @@ impl MitsubaRunner {
         }
         let mut cmd = Command::new(&self.python);
         cmd.arg(&self.script)
-            .arg(scene)
+            .arg(request.scene)
             .arg("--out")
-            .arg(out)
+            .arg(request.out)
             .arg("--seed")
-            .arg(seed.to_string());
-        match (spp, budget) {
+            .arg(request.seed.to_string());
+        match (request.spp, request.budget) {
             (Some(n), _) => cmd.arg("--spp").arg(n.to_string()),
             (None, Some(b)) => cmd.arg("--budget").arg(format!("{b}")),
             (None, None) => unreachable!("a spp or a budget"),
         };
-        for dir in search {
+        for dir in request.search {
             cmd.arg("-a").arg(dir);
         }
-        for (k, v) in params {
+        for (k, v) in request.defines {
             cmd.arg("-D").arg(format!("{k}={v}"));
         }
         let output = match cmd.output() {

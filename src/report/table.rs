@@ -23,20 +23,17 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{anyhow, bail, Context, Result};
-use glam::Vec3;
 
-use super::decompose::{self, Decomposition};
+use super::decompose::Decomposition;
 use super::metrics::mse_against;
-use super::mitsuba::{MitsubaRunner, Unavailable};
+use super::mitsuba::{MitsubaRequest, MitsubaRunner, Unavailable};
 use super::paper::table1_row;
 pub use super::reference::{Reference, ReferenceMeta};
 pub use super::row::{Accounting, Method, Row};
 use crate::denoise::AuxUse;
 use crate::image::Image;
-use crate::integrator::volpath::Gradient;
 use crate::integrator::{render, RenderOptions, Rendered};
 use crate::load::build_scene;
-use crate::regularize::pilot::{self, Pilot};
 use crate::regularize::pipeline::PilotSize;
 use crate::regularize::sequence::{image_centre_point, CameraPath};
 use crate::regularize::spatial::BilateralParams;
@@ -44,6 +41,8 @@ use crate::regularize::{self, CBeta, Reproject};
 use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene};
 use crate::{image, xml, BuildOverrides};
+
+mod sequences;
 
 /// How much each method may spend.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -265,102 +264,205 @@ impl SceneJob {
     }
 }
 
-/// Renders one scene with every method and appends its rows to `run`.
+/// Renders one scene with every method and appends its rows to `run`, step by step:
+/// the baselines, the regularized sequences, the baselines again at the sequence's
+/// time (`still`), Mitsuba 3.
 pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Result<()> {
-    let name = job.scene.as_str();
-    let tag = job.tag.as_str();
-    let log = |msg: String| {
-        if opts.verbose {
-            eprintln!("[{tag}] {msg}");
+    let ctx = SceneRun::load(job, opts, run)?;
+    let baselines = run_baselines(&ctx, run)?;
+    let still_seconds = sequences::run_sequences(&ctx, run, baselines.volpath_per_spp)?;
+    run_still_baselines(&ctx, run, &baselines, still_seconds)?;
+    run_mitsuba(&ctx, run)
+}
+
+/// One scene at one seed, as `run_scene` renders it: the scene and its reference, and
+/// what each of its steps shares.
+struct SceneRun<'a> {
+    opts: &'a TableOptions,
+    /// The scene's name, as its rows and notes give it.
+    name: &'a str,
+    /// The prefix of its files' names.
+    tag: &'a str,
+    scene: Scene,
+    reference: Reference,
+    /// The medium whose albedo the regularized methods change.
+    medium: u32,
+    /// α_s = factor · α_t of the fixed-factor sequences.
+    factor: f32,
+    /// The reference's path relative to `opts.out`, as the rows give it.
+    ref_rel: String,
+    /// The run's first seed of this scene: its images keep the plain names.
+    first_seed: bool,
+    seed: u64,
+    /// The files' suffix: none at the first seed, else `_seedN`.
+    suffix: String,
+    /// The baselines' render options (emission seen from the camera counts).
+    with_seen: RenderOptions,
+}
+
+/// One method's image, as its row records it.
+struct MethodImage<'i> {
+    method: Method,
+    accounting: Accounting,
+    /// The regularized rows' factor per channel (source over target albedo).
+    factor: Option<[f32; 3]>,
+    image: &'i Image,
+    spp: u32,
+    seconds: f64,
+    /// A sequence's frames rendered and its whole time.
+    sequence: Option<(usize, f64)>,
+    /// Also a `still` row of the same image, charged these seconds.
+    still_seconds: Option<f64>,
+}
+
+impl<'i> MethodImage<'i> {
+    /// A baseline's image: no factor, no sequence, no still row.
+    fn baseline(
+        method: Method,
+        accounting: Accounting,
+        image: &'i Image,
+        spp: u32,
+        seconds: f64,
+    ) -> Self {
+        MethodImage {
+            method,
+            accounting,
+            factor: None,
+            image,
+            spp,
+            seconds,
+            sequence: None,
+            still_seconds: None,
         }
-    };
-    let (scene, reference) = load_with_reference(opts, name, &job.reference, &opts.params)?;
-    let medium = scene
-        .medium_index(None)
-        .map_err(|e| anyhow!("{name}: {e}"))?;
-    let factor = opts
-        .factor
-        .or(table1_row(name).map(|r| r.factor))
-        .unwrap_or(0.95);
-    let ref_rel = relative_to(&reference.path, &opts.out);
-    let ref_var_mean = super::metrics::mean(&reference.var);
-    let first_seed = !run.references.iter().any(|(n, ..)| n == name);
-    if first_seed {
-        let se = super::metrics::correction_se(&reference.var, reference.meta.chunks);
-        run.references
-            .push((name.to_string(), reference.meta.clone(), ref_var_mean, se));
     }
-    log(format!(
-        "reference: Mitsuba {} {}, {} spp; mean variance {:.3e}",
-        reference.meta.mitsuba_version, reference.meta.variant, reference.meta.spp, ref_var_mean
-    ));
-    if opts.write_png && first_seed {
-        image::write_png(
-            &opts.out.join(format!("{tag}_reference.png")),
-            &reference.mean,
-        )?;
+}
+
+impl<'a> SceneRun<'a> {
+    /// Loads the scene and its reference; at the scene's first seed, records the
+    /// reference in `run` (and writes its PNG when asked).
+    fn load(job: &'a SceneJob, opts: &'a TableOptions, run: &mut TableRun) -> Result<Self> {
+        let name = job.scene.as_str();
+        let (scene, reference) = load_with_reference(opts, name, &job.reference, &opts.params)?;
+        let medium = scene
+            .medium_index(None)
+            .map_err(|e| anyhow!("{name}: {e}"))?;
+        let factor = opts
+            .factor
+            .or(table1_row(name).map(|r| r.factor))
+            .unwrap_or(0.95);
+        let ref_rel = relative_to(&reference.path, &opts.out);
+        let ref_var_mean = super::metrics::mean(&reference.var);
+        let first_seed = !run.references.iter().any(|(n, ..)| n == name);
+        if first_seed {
+            let se = super::metrics::correction_se(&reference.var, reference.meta.chunks);
+            run.references
+                .push((name.to_string(), reference.meta.clone(), ref_var_mean, se));
+        }
+        let seed = opts.seed;
+        let ctx = SceneRun {
+            opts,
+            name,
+            tag: job.tag.as_str(),
+            scene,
+            reference,
+            medium,
+            factor,
+            ref_rel,
+            first_seed,
+            seed,
+            // The first seed's images keep the plain names (the report shows them).
+            suffix: match first_seed {
+                true => String::new(),
+                false => format!("_seed{seed}"),
+            },
+            with_seen: RenderOptions {
+                seen_emission: true,
+                ..Default::default()
+            },
+        };
+        let meta = &ctx.reference.meta;
+        ctx.log(format!(
+            "reference: Mitsuba {} {}, {} spp; mean variance {:.3e}",
+            meta.mitsuba_version, meta.variant, meta.spp, ref_var_mean
+        ));
+        if opts.write_png && first_seed {
+            image::write_png(
+                &opts.out.join(format!("{}_reference.png", ctx.tag)),
+                &ctx.reference.mean,
+            )?;
+        }
+        Ok(ctx)
     }
 
-    let seed = opts.seed;
-    // The first seed's images keep the plain names (the report shows them).
-    let suffix = match first_seed {
-        true => String::new(),
-        false => format!("_seed{seed}"),
-    };
-    let calibrate = |options: &RenderOptions| -> Option<f64> {
-        match opts.budget {
+    /// One line on stderr when the run is verbose.
+    fn log(&self, msg: String) {
+        if self.opts.verbose {
+            eprintln!("[{}] {msg}", self.tag);
+        }
+    }
+
+    /// The run skips `method`.
+    fn skip(&self, method: Method) -> bool {
+        self.opts.skip.contains(&method)
+    }
+
+    /// Seconds per spp of the scene rendered with `options` at a time budget (`None`
+    /// at an spp budget).
+    fn calibrate(&self, options: &RenderOptions) -> Option<f64> {
+        match self.opts.budget {
             Budget::Seconds(b) => Some(seconds_per_spp(
-                &scene,
+                &self.scene,
                 options,
                 (b / 10.0).min(1.0),
-                seed.wrapping_add(1_000_000),
+                self.seed.wrapping_add(1_000_000),
             )),
             Budget::Spp(_) => None,
         }
-    };
-    let mut push = |method: Method,
-                    accounting: Accounting,
-                    factor: Option<[f32; 3]>,
-                    img: &Image,
-                    spp: u32,
-                    seconds: f64,
-                    sequence: Option<(usize, f64)>,
-                    still_seconds: Option<f64>|
-     -> Result<f64> {
-        let mut name_of = match (method, factor) {
+    }
+
+    /// Writes `out`'s image (`tag_METHOD[_still][_seedN].exr`, and the PNG when asked),
+    /// measures it against the reference and pushes its row (and its still row);
+    /// returns the corrected MSE.
+    fn push(&self, run: &mut TableRun, out: MethodImage) -> Result<f64> {
+        let opts = self.opts;
+        let mut name_of = match (out.method, out.factor) {
             (Method::RegularizedDifference, Some(f)) => {
-                format!("{}_factor{}", method.as_str(), f[0])
+                format!("{}_factor{}", out.method.as_str(), f[0])
             }
-            _ => method.as_str().to_string(),
+            _ => out.method.as_str().to_string(),
         };
-        if accounting == Accounting::Still {
+        if out.accounting == Accounting::Still {
             name_of += "_still";
         }
-        let file = opts.out.join(format!("{tag}_{name_of}{suffix}.exr"));
-        image::write_exr(&file, img)?;
+        let file = opts
+            .out
+            .join(format!("{}_{name_of}{}.exr", self.tag, self.suffix));
+        image::write_exr(&file, out.image)?;
         if opts.write_png {
-            image::write_png(&file.with_extension("png"), img)?;
+            image::write_png(&file.with_extension("png"), out.image)?;
         }
-        let (mse, mse_corrected) = mse_against(img, &reference.mean, &reference.var);
-        log(format!(
+        let (mse, mse_corrected) =
+            mse_against(out.image, &self.reference.mean, &self.reference.var);
+        let (spp, seconds) = (out.spp, out.seconds);
+        self.log(format!(
             "{name_of}: {spp} spp, {seconds:.2} s, MSE {mse:.4e} (corrected {mse_corrected:.4e})"
         ));
         run.rows.push(Row {
-            scene: name.to_string(),
-            method,
-            accounting,
-            seed,
+            scene: self.name.to_string(),
+            method: out.method,
+            accounting: out.accounting,
+            seed: self.seed,
             spp,
             seconds,
             mse,
             mse_corrected,
             image: relative_to(&file, &opts.out),
-            reference: ref_rel.clone(),
-            factor,
-            sequence_frames: sequence.map(|s| s.0),
-            sequence_seconds: sequence.map(|s| s.1),
+            reference: self.ref_rel.clone(),
+            factor: out.factor,
+            sequence_frames: out.sequence.map(|s| s.0),
+            sequence_seconds: out.sequence.map(|s| s.1),
         });
-        if let Some(seconds) = still_seconds {
+        if let Some(seconds) = out.still_seconds {
             // The same image, every frame and the whole pilot charged.
             let mut row = run.rows.last().expect("just pushed").clone();
             row.accounting = Accounting::Still;
@@ -368,38 +470,42 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             run.rows.push(row);
         }
         Ok(mse_corrected)
-    };
+    }
+}
 
-    let skip = |m: Method| opts.skip.contains(&m);
-    let with_seen = RenderOptions {
-        seen_emission: true,
-        ..Default::default()
-    };
-    let volpath_per_spp = calibrate(&RenderOptions::default());
-    // Plain volpath at the target albedo, then through OIDN (its time, measured on a
-    // 1-spp render, comes out of the budget).
-    if !skip(Method::Volpath) {
+/// What the baselines measured that the still baselines reuse.
+struct Baselines {
+    /// Plain volpath's seconds per spp (`None` at an spp budget).
+    volpath_per_spp: Option<f64>,
+    /// OIDN's seconds on a 1-spp render (`None` when volpath_oidn does not run).
+    oidn_seconds: Option<f64>,
+}
+
+/// Plain volpath at the target albedo, then through OIDN (its time, measured on a
+/// 1-spp render, comes out of the budget).
+fn run_baselines(ctx: &SceneRun, run: &mut TableRun) -> Result<Baselines> {
+    let (opts, scene, seed) = (ctx.opts, &ctx.scene, ctx.seed);
+    let volpath_per_spp = ctx.calibrate(&RenderOptions::default());
+    if !ctx.skip(Method::Volpath) {
         let spp = match volpath_per_spp {
             Some(per_spp) => spp_for(budget_seconds(opts.budget), per_spp),
             None => budget_spp(opts.budget),
         };
-        let r = render(&scene, &scene.shot.with(spp, seed), &with_seen);
-        push(
+        let r = render(scene, &scene.shot.with(spp, seed), &ctx.with_seen);
+        let out = MethodImage::baseline(
             Method::Volpath,
             Accounting::Frame,
-            None,
             &r.image,
             spp,
             r.stats.seconds,
-            None,
-            None,
-        )?;
+        );
+        ctx.push(run, out)?;
     }
-    let oidn_seconds = match opts.oidn && !skip(Method::VolpathOidn) {
+    let oidn_seconds = match opts.oidn && !ctx.skip(Method::VolpathOidn) {
         true => {
             let shot = scene.shot.with(1, seed.wrapping_add(3_000_000));
-            let probe = render(&scene, &shot, &with_seen);
-            Some(volpath_oidn(&scene, &shot, &probe)?.1)
+            let probe = render(scene, &shot, &ctx.with_seen);
+            Some(volpath_oidn(scene, &shot, &probe)?.1)
         }
         false => None,
     };
@@ -409,303 +515,126 @@ pub fn run_scene(job: &SceneJob, opts: &TableOptions, run: &mut TableRun) -> Res
             None => budget_spp(opts.budget),
         };
         let shot = scene.shot.with(spp, seed.wrapping_add(10));
-        let r = render(&scene, &shot, &with_seen);
-        let (img, t) = volpath_oidn(&scene, &shot, &r)?;
-        push(
+        let r = render(scene, &shot, &ctx.with_seen);
+        let (img, t) = volpath_oidn(scene, &shot, &r)?;
+        let out = MethodImage::baseline(
             Method::VolpathOidn,
             Accounting::Frame,
-            None,
             &img,
             spp,
             r.stats.seconds + t,
-            None,
-            None,
-        )?;
+        );
+        ctx.push(run, out)?;
     }
+    Ok(Baselines {
+        volpath_per_spp,
+        oidn_seconds,
+    })
+}
 
-    // The sequences: the paper's predictor, the default, the control.
-    let path = orbit_about_centre(opts, &scene).unwrap_or_else(|| {
-        run.notes.push(format!(
-            "{name}: the image centre sees no surface, so the regularized sequence keeps the camera still (frames differ only in noise)"
-        ));
-        CameraPath::Static
-    });
-    let temporal = sequence_options(opts, medium, factor, path);
-    let spatial = regularize::Options {
-        frames: 1,
-        path: CameraPath::Static,
-        spatial: Some(BilateralParams::default()),
-        ..temporal.clone()
+/// The baselines at the time of the whole default sequence (`still_seconds`), when
+/// the run asks for the still accounting: one render serves plain volpath and, with
+/// OIDN's time charged on top (a few percent of it), volpath_oidn.
+fn run_still_baselines(
+    ctx: &SceneRun,
+    run: &mut TableRun,
+    baselines: &Baselines,
+    still_seconds: Option<f64>,
+) -> Result<()> {
+    let (true, Some(total), Some(per_spp)) =
+        (ctx.opts.still, still_seconds, baselines.volpath_per_spp)
+    else {
+        return Ok(());
     };
-    let auto = default_options(opts, &temporal);
-    let control = regularize::Options {
-        method: regularize::Method::Radiance,
-        auto_factor: None,
-        ..auto.clone()
-    };
-    // Its frames render at the source albedo (shorter paths): calibrate there.
-    let target_albedo = scene.media[medium as usize].albedo;
-    let at_source = |factor: f32| {
-        RenderOptions {
-            gradient: Gradient::Albedo(medium),
-            ..Default::default()
-        }
-        .with_albedo(&scene, medium, target_albedo * factor)
-    };
-    let per_spp_gradient = calibrate(&at_source(factor));
-    let per_spp_default = match auto.auto_factor {
-        Some(_) => per_spp_gradient,
-        None => calibrate(&at_source(auto.factor)),
-    };
-    let fixed: Vec<regularize::Options> = opts
-        .difference_factors
-        .iter()
-        .map(|&f| regularize::Options {
-            factor: f,
-            auto_factor: None,
-            ..auto.clone()
-        })
-        .collect();
-    let runs = [
-        (
-            Method::RegularizedPaper,
-            &temporal,
-            100u64,
-            per_spp_gradient,
-        ),
-        (
-            Method::RegularizedSpatial,
-            &spatial,
-            200u64,
-            per_spp_gradient,
-        ),
-        (Method::Regularized, &auto, 300u64, per_spp_default),
-        (Method::VolpathFiltered, &control, 500u64, volpath_per_spp),
-    ]
-    .into_iter()
-    .chain(fixed.iter().enumerate().map(|(i, o)| {
-        (
-            Method::RegularizedDifference,
-            o,
-            400 + i as u64,
-            per_spp_gradient,
-        )
-    }))
-    .filter(|(method, ..)| !skip(*method));
-    let mut still_seconds = None;
-    for (method, ropts, seed_offset, per_spp) in runs {
-        let spp = match per_spp {
-            Some(per_spp) => {
-                // The denoising and prediction cost comes out of the frame's budget:
-                // measured on a 1-spp run of the same pipeline.
-                let known = run
-                    .overheads
-                    .iter()
-                    .find(|(n, m, _)| n == name && *m == method)
-                    .map(|o| o.2);
-                let overhead = match known {
-                    Some(o) => o,
-                    None => {
-                        let probe_shot = scene.shot.with(1, seed.wrapping_add(2_000_000));
-                        let probe = regularize::regularize(&scene, &probe_shot, ropts)
-                            .map_err(|e| anyhow!("{e}"))?;
-                        let o = probe.timings.denoise_and_predict
-                            + probe.timings.frame_denoise
-                            + probe.timings.pilot / probe.frames_rendered as f64;
-                        run.overheads.push((name.to_string(), method, o));
-                        o
-                    }
-                };
-                spp_for(budget_seconds(opts.budget) - overhead, per_spp)
-            }
-            None => budget_spp(opts.budget),
-        };
-        let shot = scene.shot.with(spp, seed.wrapping_add(seed_offset));
-        let started = Instant::now();
-        let r = regularize::regularize(&scene, &shot, ropts).map_err(|e| anyhow!("{e}"))?;
-        let sequence_seconds = started.elapsed().as_secs_f64();
-        if let Some(p) = &r.pilot {
-            run.notes.push(format!(
-                "{name} seed {seed} {}: the pilot chose the factors {:?} (R, G, B) in {:.1} s",
-                method.as_str(),
-                p.factor,
-                p.seconds
-            ));
-        }
-        if r.fallbacks > 0 {
-            run.notes.push(format!(
-                "{name} seed {seed} {}: {} channel values could not be predicted and keep the source radiance",
-                method.as_str(),
-                r.fallbacks
-            ));
-        }
-        // One frame of the sequence, and the pilot's share of it (a pilot serves the
-        // whole sequence).
-        let seconds = r.timings.target_frame
-            + r.timings.frame_denoise
-            + r.timings.denoise_and_predict
-            + r.timings.pilot / r.frames_rendered as f64;
-        let is_sequence = method != Method::RegularizedSpatial;
-        let sequence = is_sequence.then_some((r.frames_rendered, sequence_seconds));
-        let factor = (method != Method::VolpathFiltered).then(|| {
-            let (source, target) = (r.albedos.source.to_array(), r.albedos.target.to_array());
-            [0, 1, 2].map(|c| match target[c] > 0.0 {
-                true => source[c] / target[c],
-                false => 1.0,
-            })
-        });
-        let mse_corrected = push(
-            method,
-            Accounting::Frame,
-            factor,
-            &r.predicted,
+    let scene = &ctx.scene;
+    let spp = spp_for(total - baselines.oidn_seconds.unwrap_or(0.0), per_spp);
+    let shot = scene.shot.with(spp, ctx.seed.wrapping_add(20));
+    let r = render(scene, &shot, &ctx.with_seen);
+    if !ctx.skip(Method::Volpath) {
+        let out = MethodImage::baseline(
+            Method::Volpath,
+            Accounting::Still,
+            &r.image,
             spp,
-            seconds,
-            sequence,
-            (opts.still && is_sequence).then_some(sequence_seconds),
-        )?;
-        if method == Method::Regularized {
-            still_seconds = Some(sequence_seconds);
-        }
-        if let (Method::Regularized, Some(pilot), true) = (method, &r.pilot, first_seed) {
-            let decomposition =
-                decompose_scene(&scene, name, medium, ropts, pilot, spp, mse_corrected);
-            run.decomposition.push(decomposition);
-        }
+            r.stats.seconds,
+        );
+        ctx.push(run, out)?;
     }
-
-    // The baselines at the time of the whole default sequence: one render serves plain
-    // volpath and, with OIDN's time charged on top (a few percent of it), volpath_oidn.
-    if let (true, Some(total), Some(per_spp)) = (opts.still, still_seconds, volpath_per_spp) {
-        let spp = spp_for(total - oidn_seconds.unwrap_or(0.0), per_spp);
-        let shot = scene.shot.with(spp, seed.wrapping_add(20));
-        let r = render(&scene, &shot, &with_seen);
-        if !skip(Method::Volpath) {
-            push(
-                Method::Volpath,
-                Accounting::Still,
-                None,
-                &r.image,
-                spp,
-                r.stats.seconds,
-                None,
-                None,
-            )?;
-        }
-        if oidn_seconds.is_some() {
-            let (img, t) = volpath_oidn(&scene, &shot, &r)?;
-            push(
-                Method::VolpathOidn,
-                Accounting::Still,
-                None,
-                &img,
-                spp,
-                r.stats.seconds + t,
-                None,
-                None,
-            )?;
-        }
-    }
-
-    // Mitsuba 3 on the same file.
-    match &opts.mitsuba {
-        None => run
-            .notes
-            .push(format!("{name}: Mitsuba 3 not run (--no-mitsuba)")),
-        Some(runner) => {
-            let file = opts.out.join(format!("{tag}_mitsuba_volpath{suffix}.exr"));
-            let (spp, budget) = match opts.budget {
-                Budget::Seconds(b) => (None, Some(b)),
-                Budget::Spp(n) => (Some(n), None),
-            };
-            log("mitsuba_volpath: rendering".into());
-            match runner.render(
-                &scene_file(opts, name),
-                &file,
-                &opts.params,
-                &opts.search,
-                spp,
-                budget,
-                seed.wrapping_add(300),
-            ) {
-                Ok(m) => {
-                    let img = image::read_exr(&file)?;
-                    if opts.write_png {
-                        image::write_png(&file.with_extension("png"), &img)?;
-                    }
-                    let (mse, mse_corrected) = mse_against(&img, &reference.mean, &reference.var);
-                    log(format!(
-                        "mitsuba_volpath ({}): {} spp, {:.2} s, MSE {mse:.4e} (corrected {mse_corrected:.4e})",
-                        m.variant, m.spp, m.seconds
-                    ));
-                    run.rows.push(Row {
-                        scene: name.to_string(),
-                        method: Method::MitsubaVolpath,
-                        accounting: Accounting::Frame,
-                        seed,
-                        spp: m.spp,
-                        seconds: m.seconds,
-                        mse,
-                        mse_corrected,
-                        image: relative_to(&file, &opts.out),
-                        reference: ref_rel.clone(),
-                        factor: None,
-                        sequence_frames: None,
-                        sequence_seconds: None,
-                    });
-                }
-                Err(Unavailable::NotInstalled(why)) => run.notes.push(format!(
-                    "{name}: Mitsuba 3 not run: {why} (install it: python3 -m venv .venv && .venv/bin/pip install mitsuba numpy)"
-                )),
-                Err(Unavailable::Failed(e)) => {
-                    run.notes.push(format!("{name}: Mitsuba 3 failed: {e:#}"))
-                }
-            }
-        }
+    if baselines.oidn_seconds.is_some() {
+        let (img, t) = volpath_oidn(scene, &shot, &r)?;
+        let out = MethodImage::baseline(
+            Method::VolpathOidn,
+            Accounting::Still,
+            &img,
+            spp,
+            r.stats.seconds + t,
+        );
+        ctx.push(run, out)?;
     }
     Ok(())
 }
 
-/// Where the automatic row's gain goes (`decompose`): the pilot's terms, and the time
-/// per spp and mean path vertices measured at the target and the chosen albedo.
-fn decompose_scene(
-    scene: &Scene,
-    name: &str,
-    medium: u32,
-    ropts: &regularize::Options,
-    pilot: &Pilot,
-    spp: u32,
-    mse_corrected: f64,
-) -> Decomposition {
-    let target = scene.media[medium as usize].albedo;
-    let source = target * Vec3::from(pilot.factor);
-    let shot = &scene.shot;
-    let (w, h) = shot.film.crop_size;
-    let n_eff = pilot::effective_frames(ropts.frames, ropts.w_a);
-    let terms = decompose::pilot_terms(pilot, w * h, n_eff);
-    let seed = shot.seed.wrapping_add(6_000_000);
-    let difference = RenderOptions {
-        gradient: Gradient::Difference { medium, target },
-        ..Default::default()
-    }
-    .with_albedo(scene, medium, source);
-    let predicted_variance = (terms.var_source + terms.var_difference_denoised) / spp as f64;
-    Decomposition {
-        scene: name.to_string(),
-        factor: pilot.factor,
-        seconds_per_spp_target: seconds_per_spp(scene, &RenderOptions::default(), 1.0, seed),
-        seconds_per_spp_source: seconds_per_spp(scene, &difference, 1.0, seed),
-        vertices_target: decompose::mean_vertices(scene, shot, medium, target, 4),
-        vertices_source: decompose::mean_vertices(scene, shot, medium, source, 4),
-        var_target: terms.var_target,
-        var_source: terms.var_source,
-        var_difference: terms.var_difference,
-        var_difference_denoised: terms.var_difference_denoised,
+/// Mitsuba 3 on the same file: its row, or a note saying why it did not run.
+fn run_mitsuba(ctx: &SceneRun, run: &mut TableRun) -> Result<()> {
+    let (opts, name) = (ctx.opts, ctx.name);
+    let Some(runner) = &opts.mitsuba else {
+        run.notes
+            .push(format!("{name}: Mitsuba 3 not run (--no-mitsuba)"));
+        return Ok(());
+    };
+    let file = opts
+        .out
+        .join(format!("{}_mitsuba_volpath{}.exr", ctx.tag, ctx.suffix));
+    let (spp, budget) = match opts.budget {
+        Budget::Seconds(b) => (None, Some(b)),
+        Budget::Spp(n) => (Some(n), None),
+    };
+    ctx.log("mitsuba_volpath: rendering".into());
+    let request = MitsubaRequest {
+        scene: &scene_file(opts, name),
+        out: &file,
+        defines: &opts.params,
+        search: &opts.search,
         spp,
-        predicted_variance,
-        mse_corrected,
-        bias2: mse_corrected - predicted_variance,
+        budget,
+        seed: ctx.seed.wrapping_add(300),
+    };
+    match runner.render(&request) {
+        Ok(m) => {
+            let img = image::read_exr(&file)?;
+            if opts.write_png {
+                image::write_png(&file.with_extension("png"), &img)?;
+            }
+            let reference = &ctx.reference;
+            let (mse, mse_corrected) = mse_against(&img, &reference.mean, &reference.var);
+            ctx.log(format!(
+                "mitsuba_volpath ({}): {} spp, {:.2} s, MSE {mse:.4e} (corrected {mse_corrected:.4e})",
+                m.variant, m.spp, m.seconds
+            ));
+            run.rows.push(Row {
+                scene: name.to_string(),
+                method: Method::MitsubaVolpath,
+                accounting: Accounting::Frame,
+                seed: ctx.seed,
+                spp: m.spp,
+                seconds: m.seconds,
+                mse,
+                mse_corrected,
+                image: relative_to(&file, &opts.out),
+                reference: ctx.ref_rel.clone(),
+                factor: None,
+                sequence_frames: None,
+                sequence_seconds: None,
+            });
+        }
+        Err(Unavailable::NotInstalled(why)) => run.notes.push(format!(
+            "{name}: Mitsuba 3 not run: {why} (install it: python3 -m venv .venv && .venv/bin/pip install mitsuba numpy)"
+        )),
+        Err(Unavailable::Failed(e)) => {
+            run.notes.push(format!("{name}: Mitsuba 3 failed: {e:#}"))
+        }
     }
+    Ok(())
 }
 
 /// `render --denoise oidn` on a render of `shot`: the image and the seconds it took.
