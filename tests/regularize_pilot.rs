@@ -79,17 +79,14 @@ fn pilot_of(name: &str, params: &[(&str, &str)], n: u32, seed: u64) -> (pilot::P
     let params = BilateralParams::default();
     let features = spatial::first_hit_features(&scene, &scene.shot);
     let (w, h) = scene.shot.film.crop_size;
-    let p = pilot::choose_factor(
-        &scene,
-        &scene.shot,
-        0,
-        11,
-        0.1,
-        Some(&params),
-        &features,
-        8,
-        1,
-    );
+    let settings = pilot::PilotSettings {
+        medium: 0,
+        frames: 11,
+        w_a: 0.1,
+        spatial: Some(&params),
+        size: pilot::PilotSize { chunks: 8, spp: 1 },
+    };
+    let p = pilot::choose_factor(&scene, &scene.shot, &features, &settings);
     (p, (3 * w * h) as f64)
 }
 

@@ -41,61 +41,7 @@ impl Builder<'_> {
         });
         let flip_normals = p.bool("flip_normals", false)?;
         let geometry = match p.obj.plugin.as_str() {
-            "ply" | "obj" | "serialized" => {
-                let (name, loc) = p
-                    .string_opt("filename")?
-                    .ok_or_else(|| p.error("missing the \"filename\" property"))?;
-                let path = resolve_path(&self.desc.search_path, name).ok_or_else(|| {
-                    let dirs: Vec<String> = self.desc.search_path.iter().map(|d| d.display().to_string()).collect();
-                    SceneError::at(loc, format!("mesh file \"{name}\" not found"))
-                        .with_hint(format!(
-                            "searched: {}; add its folder with -a DIR (for the Stanford meshes run scripts/fetch_meshes)",
-                            dirs.join(", ")
-                        ))
-                })?;
-                let face_normals = p.bool("face_normals", false)?;
-                let index = match p.obj.plugin.as_str() {
-                    "serialized" => {
-                        let index = p.int("shape_index", 0)?;
-                        u32::try_from(index).map_err(|_| {
-                            p.error(format!("shape_index = {index}: must be 0 or more"))
-                        })?
-                    }
-                    _ => 0,
-                };
-                // Each file is read once, however many instances (or shapes) use it.
-                let key = (p.obj.plugin.clone(), path.clone(), index);
-                let mut raw = match self.meshes.get(&key) {
-                    Some(raw) => raw.clone(),
-                    None => {
-                        MESH_FILES_READ.with(|n| n.set(n.get() + 1));
-                        let raw = match p.obj.plugin.as_str() {
-                            "ply" => read_ply(&path),
-                            "obj" => read_obj(&path),
-                            _ => read_serialized(&path, index),
-                        }
-                        // Name the scene line of the <shape> too, not only the mesh file.
-                        .map_err(|e| SceneError::at(p.loc(), format!("{}: {e}", p.obj.label())))?;
-                        self.meshes.insert(key, raw.clone());
-                        raw
-                    }
-                };
-                // Mitsuba flips an OBJ's v (v ↦ 1 − v) unless told not to.
-                if p.obj.plugin == "obj" && p.bool("flip_tex_coords", true)? {
-                    if let Some(uvs) = &mut raw.uvs {
-                        uvs.iter_mut().for_each(|t| t.y = 1.0 - t.y);
-                    }
-                }
-                self.warnings
-                    .extend(raw.warnings.iter().map(|w| format!("{}: {w}", p.loc())));
-                Geometry::Mesh(TriangleMesh::new(
-                    raw,
-                    &to_mat4(to_world),
-                    face_normals,
-                    flip_normals,
-                    Path::new(&path),
-                )?)
-            }
+            "ply" | "obj" | "serialized" => self.mesh_geometry(&p, to_world, flip_normals)?,
             "cube" => {
                 let to_world = to_mat4(to_world);
                 let mut mesh =
@@ -103,30 +49,7 @@ impl Builder<'_> {
                 mesh.cube_to_world = Some(to_world);
                 Geometry::Mesh(mesh)
             }
-            "sphere" => {
-                let center = p.point_opt("center")?.unwrap_or(DVec3::ZERO);
-                let radius = p.float("radius", 1.0)?;
-                if radius <= 0.0 {
-                    return Err(p.error(format!("radius = {radius}: must be > 0")));
-                }
-                // Mitsuba: to_world · translate(center) · scale(radius); only similarity
-                // transforms keep it a sphere.
-                let c = to_world.transform_point3(center);
-                let axes =
-                    [DVec3::X, DVec3::Y, DVec3::Z].map(|a| to_world.transform_vector3(a).length());
-                if (axes[0] - axes[1]).abs() > 1e-6 * axes[0]
-                    || (axes[0] - axes[2]).abs() > 1e-6 * axes[0]
-                {
-                    return Err(p.error(format!("to_world scales the sphere non-uniformly{under}; use a ply/obj mesh for an ellipsoid")));
-                }
-                let linear = glam::DMat3::from_mat4(to_world) / axes[0];
-                Geometry::Sphere(Sphere {
-                    center: c.as_vec3().into(),
-                    radius: (radius * axes[0]) as f32,
-                    flip_normals,
-                    axes: glam::Mat3A::from(linear.as_mat3()),
-                })
-            }
+            "sphere" => sphere_geometry(&p, to_world, flip_normals, &under)?,
             "rectangle" => Geometry::Planar(Planar::new(to_mat4(to_world), flip_normals, false)),
             "disk" => Geometry::Planar(Planar::new(to_mat4(to_world), flip_normals, true)),
             _ => {
@@ -137,21 +60,7 @@ impl Builder<'_> {
                 ))
             }
         };
-        // Single-precision ray tracing needs finite coordinates of sane magnitude (at 1e12
-        // one f32 step is 6e4 units; box areas overflow near 1e19 and break the BVH).
-        let b = geometry.bounds();
-        let mut reach = b.min.abs().max(b.max.abs()).max_element();
-        if let Geometry::Mesh(m) = &geometry {
-            // Bounds skip NaN; a NaN vertex (binary PLY) must not.
-            if m.positions.iter().any(|p| !p.is_finite()) {
-                reach = f32::NAN;
-            }
-        }
-        if !b.is_empty() && (reach.is_nan() || reach > MAX_COORDINATE) {
-            return Err(p.error(format!(
-                "the shape reaches {reach:e} from the origin: coordinates must be finite and within ±{MAX_COORDINATE:e}; check its to_world, radius or the mesh's units"
-            )));
-        }
+        check_reach(&p, &geometry)?;
         let shape_index = self.geometries.len() as u32;
         let emitter = match p.child_of(ObjectKind::Emitter)? {
             Some(c) if placed.is_some() => {
@@ -175,6 +84,92 @@ impl Builder<'_> {
                 self.bsdfs.len() as u32 - 1
             }
         };
+        let (interior, exterior) = self.shape_media(&p)?;
+        let tangent_frame = self.check_surface(&p, bsdf, emitter.is_some(), &geometry)?;
+        let names = match p.obj.plugin.as_str() {
+            "ply" => "filename, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
+            "obj" => "filename, to_world, face_normals, flip_normals, flip_tex_coords, bsdf, emitter, interior, exterior",
+            "serialized" => "filename, shape_index, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
+            "sphere" => "center, radius, to_world, flip_normals, bsdf, emitter, interior, exterior",
+            _ => "to_world, flip_normals, bsdf, emitter, interior, exterior",
+        };
+        p.finish(names)?;
+        self.geometries.push(geometry);
+        self.shapes.push(ShapeInfo {
+            bsdf,
+            emitter,
+            interior,
+            exterior,
+            tangent_frame,
+        });
+        Ok(())
+    }
+
+    /// The mesh of a `ply`, `obj` or `serialized` shape `p`, placed by `to_world`: its
+    /// file found on the search path and read once however many shapes use it.
+    fn mesh_geometry(
+        &mut self,
+        p: &Props,
+        to_world: DMat4,
+        flip_normals: bool,
+    ) -> Result<Geometry> {
+        let (name, loc) = p
+            .string_opt("filename")?
+            .ok_or_else(|| p.error("missing the \"filename\" property"))?;
+        let path = resolve_path(&self.desc.search_path, name).ok_or_else(|| {
+            let dirs: Vec<String> = self.desc.search_path.iter().map(|d| d.display().to_string()).collect();
+            SceneError::at(loc, format!("mesh file \"{name}\" not found"))
+                .with_hint(format!(
+                    "searched: {}; add its folder with -a DIR (for the Stanford meshes run scripts/fetch_meshes)",
+                    dirs.join(", ")
+                ))
+        })?;
+        let face_normals = p.bool("face_normals", false)?;
+        let index = match p.obj.plugin.as_str() {
+            "serialized" => {
+                let index = p.int("shape_index", 0)?;
+                u32::try_from(index)
+                    .map_err(|_| p.error(format!("shape_index = {index}: must be 0 or more")))?
+            }
+            _ => 0,
+        };
+        // Each file is read once, however many instances (or shapes) use it.
+        let key = (p.obj.plugin.clone(), path.clone(), index);
+        let mut raw = match self.meshes.get(&key) {
+            Some(raw) => raw.clone(),
+            None => {
+                MESH_FILES_READ.with(|n| n.set(n.get() + 1));
+                let raw = match p.obj.plugin.as_str() {
+                    "ply" => read_ply(&path),
+                    "obj" => read_obj(&path),
+                    _ => read_serialized(&path, index),
+                }
+                // Name the scene line of the <shape> too, not only the mesh file.
+                .map_err(|e| SceneError::at(p.loc(), format!("{}: {e}", p.obj.label())))?;
+                self.meshes.insert(key, raw.clone());
+                raw
+            }
+        };
+        // Mitsuba flips an OBJ's v (v ↦ 1 − v) unless told not to.
+        if p.obj.plugin == "obj" && p.bool("flip_tex_coords", true)? {
+            if let Some(uvs) = &mut raw.uvs {
+                uvs.iter_mut().for_each(|t| t.y = 1.0 - t.y);
+            }
+        }
+        self.warnings
+            .extend(raw.warnings.iter().map(|w| format!("{}: {w}", p.loc())));
+        Ok(Geometry::Mesh(TriangleMesh::new(
+            raw,
+            &to_mat4(to_world),
+            face_normals,
+            flip_normals,
+            Path::new(&path),
+        )?))
+    }
+
+    /// The shape's interior and exterior media; a nested medium under any other name
+    /// (or none) is loaded, bound to nothing, and warned about.
+    fn shape_media(&mut self, p: &Props) -> Result<(Option<u32>, Option<u32>)> {
         let interior = match p.named_child_of("interior", ObjectKind::Medium)? {
             Some(c) => Some(self.medium(c.object)?),
             None => None,
@@ -203,13 +198,19 @@ impl Builder<'_> {
                 }
             }
         }
-        let names = match p.obj.plugin.as_str() {
-            "ply" => "filename, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
-            "obj" => "filename, to_world, face_normals, flip_normals, flip_tex_coords, bsdf, emitter, interior, exterior",
-            "serialized" => "filename, shape_index, to_world, face_normals, flip_normals, bsdf, emitter, interior, exterior",
-            "sphere" => "center, radius, to_world, flip_normals, bsdf, emitter, interior, exterior",
-            _ => "to_world, flip_normals, bsdf, emitter, interior, exterior",
-        };
+        Ok((interior, exterior))
+    }
+
+    /// Refuses what the shape `p`'s surface cannot carry here: a textured or anisotropic
+    /// `bsdf` without the texture coordinates it needs, an area light (`emitter`) of no
+    /// finite area. Returns whether the shading frame must follow ∂p/∂u.
+    fn check_surface(
+        &self,
+        p: &Props,
+        bsdf: u32,
+        emitter: bool,
+        geometry: &Geometry,
+    ) -> Result<bool> {
         // Texture coordinates exist on meshes and rectangles only (Mitsuba's cube, sphere
         // and disk have their own, not implemented here).
         if self.bsdfs[bsdf as usize].is_textured()
@@ -231,21 +232,63 @@ impl Builder<'_> {
             )));
         }
         // An area light is sampled with pdf 1 / area.
-        if emitter.is_some() && !(geometry.area() > 0.0 && geometry.area().is_finite()) {
+        if emitter && !(geometry.area() > 0.0 && geometry.area().is_finite()) {
             return Err(p.error(format!(
                 "the area light's shape has area {}: it must be finite and > 0; check its to_world scale",
                 geometry.area()
             )));
         }
-        p.finish(names)?;
-        self.geometries.push(geometry);
-        self.shapes.push(ShapeInfo {
-            bsdf,
-            emitter,
-            interior,
-            exterior,
-            tangent_frame,
-        });
-        Ok(())
+        Ok(tangent_frame)
     }
+}
+
+/// The sphere of shape `p` placed by `to_world` (a similarity transform; `under` names
+/// the instance that places it, if one does).
+fn sphere_geometry(
+    p: &Props,
+    to_world: DMat4,
+    flip_normals: bool,
+    under: &str,
+) -> Result<Geometry> {
+    let center = p.point_opt("center")?.unwrap_or(DVec3::ZERO);
+    let radius = p.float("radius", 1.0)?;
+    if radius <= 0.0 {
+        return Err(p.error(format!("radius = {radius}: must be > 0")));
+    }
+    // Mitsuba: to_world · translate(center) · scale(radius); only similarity
+    // transforms keep it a sphere.
+    let c = to_world.transform_point3(center);
+    let axes = [DVec3::X, DVec3::Y, DVec3::Z].map(|a| to_world.transform_vector3(a).length());
+    if (axes[0] - axes[1]).abs() > 1e-6 * axes[0] || (axes[0] - axes[2]).abs() > 1e-6 * axes[0] {
+        return Err(p.error(format!(
+            "to_world scales the sphere non-uniformly{under}; use a ply/obj mesh for an ellipsoid"
+        )));
+    }
+    let linear = glam::DMat3::from_mat4(to_world) / axes[0];
+    Ok(Geometry::Sphere(Sphere {
+        center: c.as_vec3().into(),
+        radius: (radius * axes[0]) as f32,
+        flip_normals,
+        axes: glam::Mat3A::from(linear.as_mat3()),
+    }))
+}
+
+/// Refuses a shape `p` whose `geometry` is not finite or reaches past `MAX_COORDINATE`.
+fn check_reach(p: &Props, geometry: &Geometry) -> Result<()> {
+    // Single-precision ray tracing needs finite coordinates of sane magnitude (at 1e12
+    // one f32 step is 6e4 units; box areas overflow near 1e19 and break the BVH).
+    let b = geometry.bounds();
+    let mut reach = b.min.abs().max(b.max.abs()).max_element();
+    if let Geometry::Mesh(m) = geometry {
+        // Bounds skip NaN; a NaN vertex (binary PLY) must not.
+        if m.positions.iter().any(|p| !p.is_finite()) {
+            reach = f32::NAN;
+        }
+    }
+    if !b.is_empty() && (reach.is_nan() || reach > MAX_COORDINATE) {
+        return Err(p.error(format!(
+            "the shape reaches {reach:e} from the origin: coordinates must be finite and within ±{MAX_COORDINATE:e}; check its to_world, radius or the mesh's units"
+        )));
+    }
+    Ok(())
 }

@@ -3,16 +3,18 @@
 //! d(radiance)/d(albedo) in the same paths (`integrator::volpath`, `Gradient::Albedo`),
 //! denoise the gradient, and predict the image at the target albedo α_t.
 //!
-//! `pipeline` runs the whole method; the steps are `sequence` (camera paths),
-//! `reproject` and `temporal` (Eq. 9–10), `spatial` (a still-image denoiser), `predict`
-//! (Eq. 11–12), `fit` (c_β without a reference), `pilot` (the source factor without a
-//! reference, for the difference predictor), `fallback` (one plain frame, through OIDN
-//! where that lowers the error) and `choices` (the options from a caller's
-//! choices, shared by the CLI and the Python module).
+//! `pipeline` runs the whole method (`options`: what it is asked, and the options it
+//! refuses); the steps are `sequence` (camera paths), `reproject` and `temporal`
+//! (Eq. 9–10), `spatial` (a still-image denoiser), `predict` (Eq. 11–12), `fit` (c_β
+//! without a reference), `pilot` (the source factor without a reference, for the
+//! difference predictor), `fallback` (one plain frame, through OIDN where that lowers
+//! the error) and `choices` (the options from a caller's choices, shared by the CLI and
+//! the Python module).
 
 pub mod choices;
 pub mod fallback;
 pub mod fit;
+pub mod options;
 pub mod pilot;
 pub mod pipeline;
 pub mod predict;

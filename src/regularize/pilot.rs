@@ -202,78 +202,55 @@ struct FilterMatrix<'a> {
     diagonal: Vec<f64>,
 }
 
-/// Runs the pilot for `medium` (target albedo the scene's) through `shot` (its spp is
-/// the run's N at factor 1), with `chunks` ≥ 2 renders of `spp` samples per factor,
-/// for a sequence of `frames` frames blended with `w_a` and, if given, the spatial
-/// filter `spatial`.
-#[allow(clippy::too_many_arguments)]
+/// What the pilot is asked: the factor for which medium, for which run (its frames,
+/// their blend and spatial filter), and at what size of its own.
+#[derive(Clone, Copy, Debug)]
+pub struct PilotSettings<'a> {
+    /// The medium whose source factor is chosen (its target albedo the scene's).
+    pub medium: u32,
+    /// The run's sequence: `frames` frames blended with `w_a` (Eq. 10).
+    pub frames: usize,
+    pub w_a: f64,
+    /// The run's spatial filter, if any.
+    pub spatial: Option<&'a BilateralParams>,
+    /// `chunks` ≥ 2 renders of `spp` samples per candidate factor.
+    pub size: PilotSize,
+}
+
+/// One candidate factor's renders, reduced: the sums of one sample's variances and the
+/// difference's mean and spread per pixel.
+struct Measurement {
+    factor: f32,
+    var_source: [f64; 3],
+    var_difference: [f64; 3],
+    difference: Measured,
+    seconds: f64,
+}
+
+/// Runs the pilot `settings` describes through `shot` (its spp is the run's N at
+/// factor 1), `features` the first visible points that guide the spatial filter.
 pub fn choose_factor(
     scene: &Scene,
     shot: &Shot,
-    medium: u32,
-    frames: usize,
-    w_a: f64,
-    spatial: Option<&BilateralParams>,
     features: &Features,
-    chunks: usize,
-    spp: u32,
+    settings: &PilotSettings,
 ) -> Pilot {
+    let PilotSize { chunks, spp } = settings.size;
     assert!(
         chunks >= 2,
         "the pilot needs two renders to measure a spread"
     );
     let start = std::time::Instant::now();
-    let target = scene.media[medium as usize].albedo;
-    let n_eff = effective_frames(frames, w_a);
+    let n_eff = effective_frames(settings.frames, settings.w_a);
     let width = shot.film.crop_size.0;
     let run_spp = shot.spp.max(1) as f64;
     let samples = (chunks as u32 * spp) as f64;
-    let layout = PixelLayout::independent(width);
-    let mut measured = Vec::new();
     let mut guide = vec![[0.0f32; 3]; shot.film.crop_size.0 * shot.film.crop_size.1];
-    for &factor in CANDIDATES.iter() {
-        let options = RenderOptions {
-            gradient: Gradient::Difference { medium, target },
-            ..Default::default()
-        }
-        .with_albedo(scene, medium, target * factor);
-        let mut seconds = 0.0;
-        let (sources, differences): (Vec<_>, Vec<_>) = (0..chunks)
-            .map(|k| {
-                // The same seeds for every factor (common random numbers), seeds no
-                // frame of a sequence uses.
-                let seed = shot.seed.wrapping_add(3_000_000 + k as u64);
-                let r = render(scene, &shot.with(spp, seed), &options);
-                seconds += r.stats.seconds;
-                (
-                    r.image.pixels,
-                    r.gradient.expect("a difference was asked for").pixels,
-                )
-            })
-            .unzip();
-        let share = 1.0 / (chunks * CANDIDATES.len()) as f32;
-        for image in &sources {
-            for (g, v) in guide.iter_mut().zip(image) {
-                *g = [0, 1, 2].map(|c| g[c] + v[c] * share);
-            }
-        }
-        // Σ over pixels of one sample's variance: the chunks' variance of the mean,
-        // times chunks × spp.
-        let total = |e: &Estimate| -> [f64; 3] {
-            [0, 1, 2].map(|c| e.var_mean.iter().map(|v| v[c]).sum::<f64>() * samples)
-        };
-        let var_source = total(&Estimate::from_chunks(&sources, layout));
-        let difference = Estimate::from_chunks(&differences, layout);
-        let var_difference = total(&difference);
-        let to_f32 =
-            |v: &[[f64; 3]]| -> Vec<[f32; 3]> { v.iter().map(|x| x.map(|y| y as f32)).collect() };
-        let kept = Measured {
-            mean: to_f32(&difference.mean),
-            var_mean: to_f32(&difference.var_mean),
-        };
-        measured.push((factor, var_source, var_difference, kept, seconds));
-    }
-    let filter = spatial.map(|params| {
+    let measured: Vec<Measurement> = CANDIDATES
+        .iter()
+        .map(|&factor| measure(scene, shot, settings, factor, &mut guide))
+        .collect();
+    let filter = settings.spatial.map(|params| {
         let (norm2, diagonal) = spatial::column_norms(&guide, features, width, params);
         FilterMatrix {
             guide,
@@ -285,20 +262,20 @@ pub fn choose_factor(
         }
     });
     let mut candidates: Vec<Candidate> = Vec::new();
-    for (factor, var_source, var_difference, difference, seconds) in measured {
+    for m in measured {
         let (var_difference_filtered, bias2) = match &filter {
-            Some(filter) if var_difference.iter().sum::<f64>() > 0.0 => {
-                spatial_terms(&difference, samples, chunks, filter)
+            Some(filter) if m.var_difference.iter().sum::<f64>() > 0.0 => {
+                spatial_terms(&m.difference, samples, chunks, filter)
             }
-            _ => (var_difference, [0.0; 3]),
+            _ => (m.var_difference, [0.0; 3]),
         };
         candidates.push(Candidate {
-            factor,
-            var_source,
-            var_difference,
+            factor: m.factor,
+            var_source: m.var_source,
+            var_difference: m.var_difference,
             var_difference_filtered,
             bias2,
-            seconds_per_spp: seconds / samples,
+            seconds_per_spp: m.seconds / samples,
             error: [0.0; 3],
         });
     }
@@ -307,6 +284,68 @@ pub fn choose_factor(
         factor: best_factors(&candidates),
         candidates,
         seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+/// Renders the pilot's `chunks` images at `factor` and measures them; each source image
+/// is added to `guide` with weight 1 / (chunks × candidates), so that after every
+/// candidate it holds the mean of all the pilot's source renders.
+fn measure(
+    scene: &Scene,
+    shot: &Shot,
+    settings: &PilotSettings,
+    factor: f32,
+    guide: &mut [[f32; 3]],
+) -> Measurement {
+    let PilotSize { chunks, spp } = settings.size;
+    let medium = settings.medium;
+    let target = scene.media[medium as usize].albedo;
+    let samples = (chunks as u32 * spp) as f64;
+    let layout = PixelLayout::independent(shot.film.crop_size.0);
+    let options = RenderOptions {
+        gradient: Gradient::Difference { medium, target },
+        ..Default::default()
+    }
+    .with_albedo(scene, medium, target * factor);
+    let mut seconds = 0.0;
+    let (sources, differences): (Vec<_>, Vec<_>) = (0..chunks)
+        .map(|k| {
+            // The same seeds for every factor (common random numbers), seeds no
+            // frame of a sequence uses.
+            let seed = shot.seed.wrapping_add(3_000_000 + k as u64);
+            let r = render(scene, &shot.with(spp, seed), &options);
+            seconds += r.stats.seconds;
+            (
+                r.image.pixels,
+                r.gradient.expect("a difference was asked for").pixels,
+            )
+        })
+        .unzip();
+    let share = 1.0 / (chunks * CANDIDATES.len()) as f32;
+    for image in &sources {
+        for (g, v) in guide.iter_mut().zip(image) {
+            *g = [0, 1, 2].map(|c| g[c] + v[c] * share);
+        }
+    }
+    // Σ over pixels of one sample's variance: the chunks' variance of the mean,
+    // times chunks × spp.
+    let total = |e: &Estimate| -> [f64; 3] {
+        [0, 1, 2].map(|c| e.var_mean.iter().map(|v| v[c]).sum::<f64>() * samples)
+    };
+    let var_source = total(&Estimate::from_chunks(&sources, layout));
+    let difference = Estimate::from_chunks(&differences, layout);
+    let var_difference = total(&difference);
+    let to_f32 =
+        |v: &[[f64; 3]]| -> Vec<[f32; 3]> { v.iter().map(|x| x.map(|y| y as f32)).collect() };
+    Measurement {
+        factor,
+        var_source,
+        var_difference,
+        difference: Measured {
+            mean: to_f32(&difference.mean),
+            var_mean: to_f32(&difference.var_mean),
+        },
+        seconds,
     }
 }
 

@@ -12,118 +12,26 @@
 
 use std::time::Instant;
 
-use glam::{Vec3, Vec3A};
+use glam::{Mat4, Vec3, Vec3A};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::fallback::{self, OidnCheck};
 use super::fit::fit_c_beta;
-use super::pilot::{self, Pilot};
+use super::options::validate;
+pub use super::options::{CBeta, Method, OidnUse, Options, RegularizeError, Reproject};
+pub use super::pilot::PilotSize;
+use super::pilot::{self, Pilot, PilotSettings};
 use super::predict::{Albedos, Predictor};
 use super::reproject;
 use super::sequence::CameraPath;
-use super::spatial::{self, BilateralParams};
+use super::spatial;
 use super::temporal::{self, Reprojection};
-use crate::denoise::{self, AuxUse, OidnError};
-use crate::error::SceneError;
+use crate::denoise::{self, AuxUse};
 use crate::image::Image;
 use crate::integrator::volpath::Gradient;
-use crate::integrator::{aovs, render, RenderOptions};
+use crate::integrator::{aovs, render, RenderOptions, Rendered};
 use crate::scene::shot::Shot;
-use crate::scene::{IntegratorKind, Scene};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Reproject {
-    /// Through each pixel's first visible point, with disocclusion.
-    Exact,
-    /// One screen-space motion per frame (the paper's Eq. 9).
-    Shift,
-    /// Frames are blended pixel for pixel (right only for a static camera).
-    None,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum CBeta {
-    Fixed(f32),
-    /// Fitted to a render at α_f = α_s + `at` · (α_t − α_s) with `spp` samples per pixel.
-    Fit {
-        spp: u32,
-        at: f32,
-    },
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Method {
-    Paper(CBeta),
-    Linear,
-    LogLinear,
-    /// The frames render the difference R(α_t) − R(α_s) in their paths instead of the
-    /// derivative, which is denoised the same way and added to R_s.
-    Difference,
-    /// The control: the frames render plain radiance at α_t, which goes through the very
-    /// reprojection, blend and filters the method's difference goes through (`factor`
-    /// is ignored, nothing is extrapolated).
-    Radiance,
-}
-
-/// Where Open Image Denoise filters (`render --denoise oidn`'s (D1): the directly seen
-/// emission kept out, no auxiliary images).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum OidnUse {
-    #[default]
-    None,
-    /// The blended difference or gradient (R_s stays as rendered).
-    Difference,
-    /// The prediction R_s + D̃ (the blended difference, unfiltered otherwise): one filter
-    /// on an image whose noise the split and the blend lowered.
-    Prediction,
-    /// Each frame's gradient (difference, radiance) before the blend, the blend then
-    /// averaging the denoiser's residual, which differs from frame to frame; with the
-    /// difference predictor also the target frame's R_s. Measured best of these on the
-    /// Bunny and the Candle (docs/regularize.md): blending raw frames leaves noise
-    /// correlated between neighbouring pixels, which OIDN does not remove.
-    Frames,
-}
-
-#[derive(Clone, Debug)]
-pub struct Options {
-    pub medium: u32,
-    /// α_s = factor · α_t.
-    pub factor: f32,
-    /// N: the target frame and N − 1 earlier ones.
-    pub frames: usize,
-    pub w_a: f64,
-    pub path: CameraPath,
-    pub reproject: Reproject,
-    pub spatial: Option<BilateralParams>,
-    /// Where Open Image Denoise filters, instead of the joint bilateral filter (`spatial`
-    /// is then None).
-    pub oidn: OidnUse,
-    pub method: Method,
-    /// Choose `factor` with a pilot (`pilot`; the difference predictor only): `chunks`
-    /// renders of `spp` samples at each candidate factor.
-    pub auto_factor: Option<PilotSize>,
-    pub show_progress: bool,
-}
-
-pub use super::pilot::PilotSize;
-
-impl Default for Options {
-    fn default() -> Self {
-        Options {
-            medium: 0,
-            factor: 0.95,
-            frames: 11,
-            w_a: 0.1,
-            path: CameraPath::Static,
-            reproject: Reproject::Exact,
-            spatial: None,
-            oidn: OidnUse::None,
-            method: Method::Paper(CBeta::Fixed(0.5)),
-            auto_factor: None,
-            show_progress: false,
-        }
-    }
-}
+use crate::scene::Scene;
 
 /// Seconds spent in each step.
 #[derive(Clone, Debug, Default)]
@@ -176,84 +84,6 @@ pub struct Regularized {
     pub oidn_check: Option<OidnCheck>,
 }
 
-/// Why the method cannot run with these options. The words are the library's; the
-/// command line says which of its flags each one concerns.
-#[derive(Clone, Debug)]
-pub enum RegularizeError {
-    /// The scene's integrator is not volpath.
-    NotVolpath,
-    NoMedium(usize),
-    /// The automatic factor is for the difference predictor only.
-    AutoFactorNeedsDifference,
-    PilotTooSmall {
-        chunks: usize,
-        spp: u32,
-    },
-    /// The source factor is outside (0, 1].
-    Factor(f32),
-    Frames {
-        frames: usize,
-        w_a: f64,
-    },
-    /// The c_β fit needs at least 1 spp and `at` in (0, 1].
-    Fit {
-        spp: u32,
-        at: f32,
-    },
-    /// The c_β fit with equal source and target albedos.
-    NothingToFit,
-    /// The albedos or c_β the predictor cannot use (`Predictor::validate`).
-    Predictor(SceneError),
-    /// Open Image Denoise is missing or failed (`Options::oidn`).
-    Denoise(OidnError),
-}
-
-impl std::fmt::Display for RegularizeError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            RegularizeError::NotVolpath => write!(
-                f,
-                "regularize needs the volpath integrator (the scene's integrator ignores media)"
-            ),
-            RegularizeError::NoMedium(m) => write!(f, "no medium #{m}"),
-            RegularizeError::AutoFactorNeedsDifference => write!(
-                f,
-                "the automatic factor is chosen for the difference predictor; give the factor for the others"
-            ),
-            RegularizeError::PilotTooSmall { chunks, spp } => write!(
-                f,
-                "the factor's pilot needs at least 2 renders of at least 1 spp (got {chunks} of {spp})"
-            ),
-            RegularizeError::Factor(x) => write!(
-                f,
-                "the source factor {x} must lie in (0, 1]: the source albedo is factor × the scene's"
-            ),
-            RegularizeError::Frames { frames, w_a } => write!(
-                f,
-                "{frames} frames must be at least 1 and w_a {w_a} in (0, 1]"
-            ),
-            RegularizeError::Fit { spp, at } => write!(
-                f,
-                "the c_beta fit needs at least 1 spp (got {spp}) and an albedo between source and target (at = {at} must lie in (0, 1])"
-            ),
-            RegularizeError::NothingToFit => write!(
-                f,
-                "the c_beta fit: source and target albedo are equal (factor 1), nothing to fit"
-            ),
-            RegularizeError::Predictor(e) => write!(f, "{e}"),
-            RegularizeError::Denoise(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for RegularizeError {}
-
-impl From<SceneError> for RegularizeError {
-    fn from(e: SceneError) -> Self {
-        RegularizeError::Predictor(e)
-    }
-}
-
 /// Runs the method on `scene` through `shot`, whose camera is the target frame. The
 /// sequence's frames are changed copies of the shot, and the source albedo an override
 /// of the render; the scene is only read.
@@ -262,81 +92,148 @@ pub fn regularize(
     shot: &Shot,
     opts: &Options,
 ) -> Result<Regularized, RegularizeError> {
-    if scene.integrator.kind != IntegratorKind::Volpath {
-        return Err(RegularizeError::NotVolpath);
+    validate(scene, opts)?;
+    if one_plain_frame(opts) {
+        return plain_frame(scene, shot, opts);
     }
-    let m = opts.medium as usize;
-    if m >= scene.media.len() {
-        return Err(RegularizeError::NoMedium(m));
-    }
-    if opts.auto_factor.is_some() && opts.method != Method::Difference {
-        return Err(RegularizeError::AutoFactorNeedsDifference);
-    }
-    if let Some(p) = opts.auto_factor {
-        if p.chunks < 2 || p.spp == 0 {
-            return Err(RegularizeError::PilotTooSmall {
-                chunks: p.chunks,
-                spp: p.spp,
-            });
-        }
-    }
-    if !(opts.factor > 0.0 && opts.factor <= 1.0) {
-        return Err(RegularizeError::Factor(opts.factor));
-    }
-    if opts.frames == 0 || !(opts.w_a > 0.0 && opts.w_a <= 1.0) {
-        return Err(RegularizeError::Frames {
-            frames: opts.frames,
-            w_a: opts.w_a,
-        });
-    }
-    let target_albedo = scene.media[m].albedo;
-    let sigma_t = scene.media[m].sigma_t;
-    // One plain frame through OIDN: OIDN where it lowers the error (`fallback`); nothing
-    // of the sequence's machinery is needed.
-    let one_plain_frame = opts.frames == 1
+    // The first visible point of each pixel: the guides of the spatial filter and of
+    // the exact reprojection (noise-free, one ray per pixel).
+    let features = spatial::first_hit_features(scene, shot);
+    // Step 1: the source albedo (the pilot's factor, if asked), and the predictor.
+    let choice = choose_albedos(scene, shot, opts, &features)?;
+    let run = Run::new(scene, shot, opts, &features, choice.albedos);
+
+    // Step 2: the sequence, earliest frame first.
+    let mut timings = Timings {
+        pilot: choice.pilot.as_ref().map_or(0.0, |p| p.seconds),
+        ..Default::default()
+    };
+    let Sequence {
+        mut gradients,
+        source,
+        seen_emission,
+        mut invalid_samples,
+    } = run.render_sequence(&mut timings)?;
+
+    // Step 3: reproject, blend, filter — all in the target frame.
+    let start = Instant::now();
+    let filtered = run.blend_and_filter(&gradients, &source, seen_emission.as_ref())?;
+    timings.denoise_and_predict = start.elapsed().as_secs_f64();
+
+    // Step 4: c_β, then the prediction.
+    let predictor = run.fitted_predictor(
+        choice.predictor,
+        &source,
+        &filtered.denoised,
+        &mut timings,
+        &mut invalid_samples,
+    );
+    let start = Instant::now();
+    let (predicted, fallbacks) = run.predict(
+        &predictor,
+        &source,
+        &filtered.denoised,
+        seen_emission.as_ref(),
+    )?;
+    timings.denoise_and_predict += start.elapsed().as_secs_f64();
+    run.bar.finish_and_clear();
+
+    let image = |pixels| as_image(source.width, source.height, pixels);
+    let c_beta = match predictor {
+        Predictor::Paper { c_beta } => Some(c_beta),
+        _ => None,
+    };
+    Ok(Regularized {
+        predicted: image(predicted),
+        raw_gradient: gradients.swap_remove(0),
+        blended: image(filtered.blended),
+        gradient: image(filtered.denoised),
+        seen_emission,
+        source,
+        albedos: choice.albedos,
+        c_beta,
+        fallbacks,
+        mean_frames: filtered.mean_frames,
+        frames_rendered: run.frames.len(),
+        timings,
+        invalid_samples,
+        pilot: choice.pilot,
+        pilot_unaffordable: choice.pilot_unaffordable,
+        oidn_check: None,
+    })
+}
+
+/// Whether the run is one plain frame through OIDN: OIDN where it lowers the error
+/// (`fallback`); nothing of the sequence's machinery is needed.
+fn one_plain_frame(opts: &Options) -> bool {
+    opts.frames == 1
         && opts.oidn == OidnUse::Frames
         && match opts.method {
             Method::Radiance => true,
             Method::Difference => opts.auto_factor.is_none() && opts.factor == 1.0,
             _ => false,
-        };
-    if one_plain_frame {
-        let f = fallback::plain_or_oidn(scene, shot).map_err(RegularizeError::Denoise)?;
-        let zeros = Image {
-            pixels: vec![[0.0; 3]; f.plain.pixels.len()],
-            ..f.plain.clone()
-        };
-        return Ok(Regularized {
-            predicted: f.image,
-            source: f.plain,
-            raw_gradient: zeros.clone(),
-            blended: zeros.clone(),
-            gradient: zeros,
-            seen_emission: Some(f.seen_emission),
-            albedos: Albedos {
-                source: target_albedo,
-                target: target_albedo,
-                sigma_t,
-            },
-            c_beta: None,
-            fallbacks: 0,
-            mean_frames: 1.0,
-            frames_rendered: 1,
-            timings: Timings {
-                target_frame: f.render_seconds,
-                frames: f.render_seconds,
-                frame_denoise: f.denoise_seconds,
-                ..Default::default()
-            },
-            invalid_samples: f.invalid_samples,
-            pilot: None,
-            pilot_unaffordable: false,
-            oidn_check: f.check,
-        });
-    }
-    // The first visible point of each pixel: the guides of the spatial filter and of
-    // the exact reprojection (noise-free, one ray per pixel).
-    let features = spatial::first_hit_features(scene, shot);
+        }
+}
+
+/// The run of one plain frame (`one_plain_frame`): the frame, through OIDN where
+/// `fallback`'s check finds that OIDN lowers the error; the gradients are zero.
+fn plain_frame(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regularized, RegularizeError> {
+    let medium = &scene.media[opts.medium as usize];
+    let f = fallback::plain_or_oidn(scene, shot).map_err(RegularizeError::Denoise)?;
+    let zeros = Image {
+        pixels: vec![[0.0; 3]; f.plain.pixels.len()],
+        ..f.plain.clone()
+    };
+    Ok(Regularized {
+        predicted: f.image,
+        source: f.plain,
+        raw_gradient: zeros.clone(),
+        blended: zeros.clone(),
+        gradient: zeros,
+        seen_emission: Some(f.seen_emission),
+        albedos: Albedos {
+            source: medium.albedo,
+            target: medium.albedo,
+            sigma_t: medium.sigma_t,
+        },
+        c_beta: None,
+        fallbacks: 0,
+        mean_frames: 1.0,
+        frames_rendered: 1,
+        timings: Timings {
+            target_frame: f.render_seconds,
+            frames: f.render_seconds,
+            frame_denoise: f.denoise_seconds,
+            ..Default::default()
+        },
+        invalid_samples: f.invalid_samples,
+        pilot: None,
+        pilot_unaffordable: false,
+        oidn_check: f.check,
+    })
+}
+
+/// Step 1's outcome.
+struct Choice {
+    /// The albedos the run renders at (source) and predicts (target).
+    albedos: Albedos,
+    /// The predictor; None while c_β is still to be fitted (step 4).
+    predictor: Option<Predictor>,
+    /// The pilot that chose the factor, where one ran.
+    pilot: Option<Pilot>,
+    /// See `Regularized::pilot_unaffordable`.
+    pilot_unaffordable: bool,
+}
+
+/// Step 1: α_s = factor · α_t, the factor given or chosen by the pilot, and the
+/// predictor, both checked (the albedos against the predictor, the c_β fit's settings).
+fn choose_albedos(
+    scene: &Scene,
+    shot: &Shot,
+    opts: &Options,
+    features: &spatial::Features,
+) -> Result<Choice, RegularizeError> {
+    let medium = &scene.media[opts.medium as usize];
     // A pilot that would cost more than its share of the render is not run: plain
     // volpath (factor 1) then, which never loses to itself.
     let affordable = opts
@@ -344,17 +241,14 @@ pub fn regularize(
         .and_then(|size| pilot::affordable(size, opts.frames, shot.spp));
     let pilot_unaffordable = opts.auto_factor.is_some() && affordable.is_none();
     let pilot = affordable.map(|size| {
-        pilot::choose_factor(
-            scene,
-            shot,
-            opts.medium,
-            opts.frames,
-            opts.w_a,
-            opts.spatial.as_ref(),
-            &features,
-            size.chunks,
-            size.spp,
-        )
+        let settings = PilotSettings {
+            medium: opts.medium,
+            frames: opts.frames,
+            w_a: opts.w_a,
+            spatial: opts.spatial.as_ref(),
+            size,
+        };
+        pilot::choose_factor(scene, shot, features, &settings)
     });
     let factor = match opts.method {
         Method::Radiance => Vec3::ONE,
@@ -364,9 +258,9 @@ pub fn regularize(
             .map_or(Vec3::splat(opts.factor), |p| Vec3::from(p.factor)),
     };
     let albedos = Albedos {
-        source: target_albedo * factor,
-        target: target_albedo,
-        sigma_t,
+        source: medium.albedo * factor,
+        target: medium.albedo,
+        sigma_t: medium.sigma_t,
     };
     let predictor = match opts.method {
         Method::Paper(CBeta::Fixed(c_beta)) => Some(Predictor::Paper { c_beta }),
@@ -388,249 +282,355 @@ pub fn regularize(
             return Err(RegularizeError::NothingToFit);
         }
     }
+    Ok(Choice {
+        albedos,
+        predictor,
+        pilot,
+        pilot_unaffordable,
+    })
+}
 
-    let camera0 = shot.camera.clone();
-    let seed0 = shot.seed;
-    let frames = opts.path.frames(camera0.to_world, opts.frames);
-    let n = frames.len();
-    let fit_steps = matches!(opts.method, Method::Paper(CBeta::Fit { .. })) as u64;
-    let bar = if opts.show_progress {
-        let b = ProgressBar::new(n as u64 + fit_steps);
-        b.set_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} frames  ETA {eta}  {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        b
-    } else {
-        ProgressBar::hidden()
-    };
+/// What steps 2–4 share: the inputs, the albedos step 1 chose, the frames' cameras,
+/// what the frames render beside the radiance, and the progress bar.
+struct Run<'a> {
+    scene: &'a Scene,
+    shot: &'a Shot,
+    opts: &'a Options,
+    features: &'a spatial::Features,
+    albedos: Albedos,
+    /// Each frame's camera-to-world, the target frame (k = 0) first.
+    frames: Vec<Mat4>,
+    gradient: Gradient,
+    bar: ProgressBar,
+}
 
-    // What the frames render beside the radiance: the derivative, or the difference.
-    let gradient = match opts.method {
-        Method::Difference => Gradient::Difference {
-            medium: opts.medium,
-            target: albedos.target,
-        },
-        Method::Radiance => Gradient::None,
-        _ => Gradient::Albedo(opts.medium),
-    };
-    // At factor 1 the difference is 0: the frames are plain renders (`render`'s image,
-    // bit for bit), which is how the method falls back to plain volpath.
-    let plain = opts.method == Method::Radiance
-        || (opts.method == Method::Difference && albedos.source == albedos.target);
-    let gradient = if plain { Gradient::None } else { gradient };
-    let oidn = opts.oidn != OidnUse::None;
-    let render_frame = |to_world, seed, albedo: Vec3, spp: Option<u32>, seen_emission| {
-        let mut frame = shot.with(spp.unwrap_or(shot.spp), seed);
+/// Step 2's outcome: the frames' gradients (difference, radiance) and the target
+/// frame's own images.
+struct Sequence {
+    /// Per frame, the target frame (k = 0) first.
+    gradients: Vec<Image>,
+    /// The target frame rendered at the source albedo (through OIDN where it filters
+    /// frames and the predictor adds it).
+    source: Image,
+    /// The target frame's sharpened seen emission, where OIDN filters.
+    seen_emission: Option<Image>,
+    invalid_samples: u64,
+}
+
+/// Step 3's outcome, in the target frame.
+struct Filtered {
+    /// The gradients blended over frames.
+    blended: Vec<[f32; 3]>,
+    /// What the filters made of `blended`.
+    denoised: Vec<[f32; 3]>,
+    /// Frames blended per pixel, averaged over the image.
+    mean_frames: f64,
+}
+
+/// A `width` × `height` image of `pixels`.
+fn as_image(width: usize, height: usize, pixels: Vec<[f32; 3]>) -> Image {
+    Image {
+        width,
+        height,
+        pixels,
+    }
+}
+
+impl<'a> Run<'a> {
+    /// The run of `opts` at `albedos` (step 1's) on the frames of `opts.path`.
+    fn new(
+        scene: &'a Scene,
+        shot: &'a Shot,
+        opts: &'a Options,
+        features: &'a spatial::Features,
+        albedos: Albedos,
+    ) -> Self {
+        let frames = opts.path.frames(shot.camera.to_world, opts.frames);
+        let fit_steps = matches!(opts.method, Method::Paper(CBeta::Fit { .. })) as u64;
+        let bar = if opts.show_progress {
+            let b = ProgressBar::new(frames.len() as u64 + fit_steps);
+            b.set_style(
+                ProgressStyle::with_template("{bar:40} {pos}/{len} frames  ETA {eta}  {msg}")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            b
+        } else {
+            ProgressBar::hidden()
+        };
+        // What the frames render beside the radiance: the derivative, or the difference.
+        let gradient = match opts.method {
+            Method::Difference => Gradient::Difference {
+                medium: opts.medium,
+                target: albedos.target,
+            },
+            Method::Radiance => Gradient::None,
+            _ => Gradient::Albedo(opts.medium),
+        };
+        // At factor 1 the difference is 0: the frames are plain renders (`render`'s image,
+        // bit for bit), which is how the method falls back to plain volpath.
+        let plain = opts.method == Method::Radiance
+            || (opts.method == Method::Difference && albedos.source == albedos.target);
+        Run {
+            scene,
+            shot,
+            opts,
+            features,
+            albedos,
+            frames,
+            gradient: if plain { Gradient::None } else { gradient },
+            bar,
+        }
+    }
+
+    /// One render of the shot from `to_world` with `seed` at `albedo`, of `spp` samples
+    /// (the shot's if None), with the run's gradient and, if asked, the seen emission.
+    fn render_frame(
+        &self,
+        to_world: Mat4,
+        seed: u64,
+        albedo: Vec3,
+        spp: Option<u32>,
+        seen_emission: bool,
+    ) -> Rendered {
+        let mut frame = self.shot.with(spp.unwrap_or(self.shot.spp), seed);
         frame.camera.to_world = to_world;
         let options = RenderOptions {
-            gradient,
+            gradient: self.gradient,
             seen_emission,
             ..Default::default()
         }
-        .with_albedo(scene, opts.medium, albedo);
-        render(scene, &frame, &options)
-    };
-
-    // Step 2: the sequence, earliest frame first.
-    let mut timings = Timings {
-        pilot: pilot.as_ref().map_or(0.0, |p| p.seconds),
-        ..Default::default()
-    };
-    let mut gradients: Vec<Image> = Vec::with_capacity(n);
-    let mut source = None;
-    let mut seen_emission = None;
-    let mut invalid_samples = 0;
-    for k in (0..n).rev() {
-        bar.set_message(format!("frame k = {k}"));
-        let r = render_frame(
-            frames[k],
-            seed0.wrapping_add(k as u64),
-            albedos.source,
-            None,
-            oidn && (k == 0 || opts.oidn == OidnUse::Frames),
-        );
-        timings.frames += r.stats.seconds;
-        invalid_samples += r.stats.invalid_samples;
-        let mut frame_gradient = match (opts.method, &r.gradient) {
-            (Method::Radiance, _) => r.image.clone(),
-            (_, Some(g)) => g.clone(),
-            (_, None) => Image {
-                pixels: vec![[0.0; 3]; r.image.pixels.len()],
-                ..r.image.clone()
-            },
-        };
-        // Charged to the frame (in a sequence each frame is denoised once).
-        let start = Instant::now();
-        let mut seen = r.seen_emission;
-        if let Some(seen) = &mut seen {
-            let mut frame_shot = shot.clone();
-            frame_shot.camera.to_world = frames[k];
-            aovs::sharpen_seen_emission(scene, &frame_shot, seen);
-        }
-        let mut frame_source = r.image;
-        if opts.oidn == OidnUse::Frames {
-            let failed = RegularizeError::Denoise;
-            match opts.method {
-                Method::Radiance => {
-                    frame_gradient =
-                        denoise::oidn(&frame_gradient, seen.as_ref(), None, AuxUse::None)
-                            .map_err(failed)?;
-                }
-                _ => {
-                    frame_gradient = denoise::oidn_signed(&frame_gradient, None, AuxUse::None)
-                        .map_err(failed)?;
-                    // The difference predictor adds R_s as it is: the target frame's
-                    // through the same denoiser (D1).
-                    if k == 0 && opts.method == Method::Difference {
-                        frame_source =
-                            denoise::oidn(&frame_source, seen.as_ref(), None, AuxUse::None)
-                                .map_err(failed)?;
-                    }
-                }
-            }
-        }
-        let spent = start.elapsed().as_secs_f64();
-        timings.frames += spent;
-        if k == 0 {
-            timings.target_frame = r.stats.seconds;
-            timings.frame_denoise = spent;
-            source = Some(frame_source);
-            seen_emission = seen;
-        }
-        gradients.push(frame_gradient);
-        bar.inc(1);
+        .with_albedo(self.scene, self.opts.medium, albedo);
+        render(self.scene, &frame, &options)
     }
-    gradients.reverse();
-    let source = source.expect("frame 0 is rendered");
 
-    // Step 3: reproject, blend, filter — all in the target frame.
-    let start = Instant::now();
-    let (w, h) = (source.width, source.height);
-    let maps: Vec<Reprojection> = (1..n)
-        .map(|k| {
-            let mut cam = camera0.clone();
-            cam.to_world = frames[k];
-            match opts.reproject {
-                Reproject::None => temporal::screen_shift(w, h, 0.0, 0.0),
-                Reproject::Exact => reproject::exact(scene, shot, &features, &cam),
-                Reproject::Shift => {
-                    let point = motion_point(&opts.path, &features, w, h);
-                    match reproject::screen_motion(&camera0, &cam, point) {
-                        Some((dx, dy)) => temporal::screen_shift(w, h, dx, dy),
-                        None => vec![None; w * h],
-                    }
-                }
-            }
-        })
-        .collect();
-    let mean_frames = 1.0
-        + maps
-            .iter()
-            .map(|m| m.iter().filter(|p| p.is_some()).count() as f64)
-            .sum::<f64>()
-            / (w * h) as f64;
-    let frame_refs: Vec<&[[f32; 3]]> = gradients.iter().map(|g| g.pixels.as_slice()).collect();
-    let blended = temporal::blend(&frame_refs, &maps, w, h, opts.w_a);
-    let mut denoised = blended.clone();
-    if let Some(params) = &opts.spatial {
-        denoised = spatial::denoise(&denoised, &source.pixels, &features, w, params);
-    }
-    let as_image = |pixels| Image {
-        width: w,
-        height: h,
-        pixels,
-    };
-    match (opts.oidn, opts.method) {
-        (OidnUse::None | OidnUse::Frames, _) => {}
-        // The control's blended radiance is an image like any render's.
-        (OidnUse::Difference | OidnUse::Prediction, Method::Radiance) => {
-            denoised = denoise::oidn(
-                &as_image(denoised),
-                seen_emission.as_ref(),
+    /// Step 2: renders the frames at the source albedo, earliest first, frame k with
+    /// seed + k, each denoised where OIDN filters frames; adds their seconds to `timings`.
+    fn render_sequence(&self, timings: &mut Timings) -> Result<Sequence, RegularizeError> {
+        let (opts, n) = (self.opts, self.frames.len());
+        let oidn = opts.oidn != OidnUse::None;
+        let mut gradients: Vec<Image> = Vec::with_capacity(n);
+        let mut source = None;
+        let mut seen_emission = None;
+        let mut invalid_samples = 0;
+        for k in (0..n).rev() {
+            self.bar.set_message(format!("frame k = {k}"));
+            let r = self.render_frame(
+                self.frames[k],
+                self.shot.seed.wrapping_add(k as u64),
+                self.albedos.source,
                 None,
-                AuxUse::None,
-            )
-            .map_err(RegularizeError::Denoise)?
-            .pixels;
+                oidn && (k == 0 || opts.oidn == OidnUse::Frames),
+            );
+            timings.frames += r.stats.seconds;
+            invalid_samples += r.stats.invalid_samples;
+            let frame_gradient = match (opts.method, &r.gradient) {
+                (Method::Radiance, _) => r.image.clone(),
+                (_, Some(g)) => g.clone(),
+                (_, None) => Image {
+                    pixels: vec![[0.0; 3]; r.image.pixels.len()],
+                    ..r.image.clone()
+                },
+            };
+            // Charged to the frame (in a sequence each frame is denoised once).
+            let start = Instant::now();
+            let mut seen = r.seen_emission;
+            if let Some(seen) = &mut seen {
+                let mut frame_shot = self.shot.clone();
+                frame_shot.camera.to_world = self.frames[k];
+                aovs::sharpen_seen_emission(self.scene, &frame_shot, seen);
+            }
+            let (frame_gradient, frame_source) =
+                self.denoise_frame(k, frame_gradient, r.image, seen.as_ref())?;
+            let spent = start.elapsed().as_secs_f64();
+            timings.frames += spent;
+            if k == 0 {
+                timings.target_frame = r.stats.seconds;
+                timings.frame_denoise = spent;
+                source = Some(frame_source);
+                seen_emission = seen;
+            }
+            gradients.push(frame_gradient);
+            self.bar.inc(1);
         }
-        (OidnUse::Difference, _) => {
-            denoised = denoise::oidn_signed(&as_image(denoised), None, AuxUse::None)
+        gradients.reverse();
+        Ok(Sequence {
+            gradients,
+            source: source.expect("frame 0 is rendered"),
+            seen_emission,
+            invalid_samples,
+        })
+    }
+
+    /// Frame k's gradient and source image through OIDN where it filters frames
+    /// (`OidnUse::Frames`), else as rendered.
+    fn denoise_frame(
+        &self,
+        k: usize,
+        gradient: Image,
+        source: Image,
+        seen: Option<&Image>,
+    ) -> Result<(Image, Image), RegularizeError> {
+        if self.opts.oidn != OidnUse::Frames {
+            return Ok((gradient, source));
+        }
+        let failed = RegularizeError::Denoise;
+        match self.opts.method {
+            Method::Radiance => {
+                let gradient =
+                    denoise::oidn(&gradient, seen, None, AuxUse::None).map_err(failed)?;
+                Ok((gradient, source))
+            }
+            _ => {
+                let gradient =
+                    denoise::oidn_signed(&gradient, None, AuxUse::None).map_err(failed)?;
+                // The difference predictor adds R_s as it is: the target frame's
+                // through the same denoiser (D1).
+                if k == 0 && self.opts.method == Method::Difference {
+                    let source =
+                        denoise::oidn(&source, seen, None, AuxUse::None).map_err(failed)?;
+                    return Ok((gradient, source));
+                }
+                Ok((gradient, source))
+            }
+        }
+    }
+
+    /// Each earlier frame's (k ≥ 1) reprojection into the target frame, as
+    /// `opts.reproject` asks.
+    fn reprojections(&self, w: usize, h: usize) -> Vec<Reprojection> {
+        let camera0 = &self.shot.camera;
+        (1..self.frames.len())
+            .map(|k| {
+                let mut cam = camera0.clone();
+                cam.to_world = self.frames[k];
+                match self.opts.reproject {
+                    Reproject::None => temporal::screen_shift(w, h, 0.0, 0.0),
+                    Reproject::Exact => {
+                        reproject::exact(self.scene, self.shot, self.features, &cam)
+                    }
+                    Reproject::Shift => {
+                        let point = motion_point(&self.opts.path, self.features, w, h);
+                        match reproject::screen_motion(camera0, &cam, point) {
+                            Some((dx, dy)) => temporal::screen_shift(w, h, dx, dy),
+                            None => vec![None; w * h],
+                        }
+                    }
+                }
+            })
+            .collect()
+    }
+
+    /// Step 3: the gradients reprojected into the target frame and blended (Eq. 10),
+    /// then filtered: the spatial filter, or OIDN where it filters the blend. The
+    /// radiance is never denoised.
+    fn blend_and_filter(
+        &self,
+        gradients: &[Image],
+        source: &Image,
+        seen_emission: Option<&Image>,
+    ) -> Result<Filtered, RegularizeError> {
+        let opts = self.opts;
+        let (w, h) = (source.width, source.height);
+        let maps = self.reprojections(w, h);
+        let mean_frames = 1.0
+            + maps
+                .iter()
+                .map(|m| m.iter().filter(|p| p.is_some()).count() as f64)
+                .sum::<f64>()
+                / (w * h) as f64;
+        let frame_refs: Vec<&[[f32; 3]]> = gradients.iter().map(|g| g.pixels.as_slice()).collect();
+        let blended = temporal::blend(&frame_refs, &maps, w, h, opts.w_a);
+        let mut denoised = blended.clone();
+        if let Some(params) = &opts.spatial {
+            denoised = spatial::denoise(&denoised, &source.pixels, self.features, w, params);
+        }
+        match (opts.oidn, opts.method) {
+            (OidnUse::None | OidnUse::Frames, _) => {}
+            // The control's blended radiance is an image like any render's.
+            (OidnUse::Difference | OidnUse::Prediction, Method::Radiance) => {
+                denoised =
+                    denoise::oidn(&as_image(w, h, denoised), seen_emission, None, AuxUse::None)
+                        .map_err(RegularizeError::Denoise)?
+                        .pixels;
+            }
+            (OidnUse::Difference, _) => {
+                denoised = denoise::oidn_signed(&as_image(w, h, denoised), None, AuxUse::None)
+                    .map_err(RegularizeError::Denoise)?
+                    .pixels;
+            }
+            (OidnUse::Prediction, _) => {}
+        }
+        Ok(Filtered {
+            blended,
+            denoised,
+            mean_frames,
+        })
+    }
+
+    /// Step 4's c_β: the predictor step 1 chose, else (`CBeta::Fit`) the paper's with
+    /// c_β fitted to a cheap render between source and target albedo, whose seconds go
+    /// to `timings.fit` and invalid samples to `invalid_samples`.
+    fn fitted_predictor(
+        &self,
+        predictor: Option<Predictor>,
+        source: &Image,
+        denoised: &[[f32; 3]],
+        timings: &mut Timings,
+        invalid_samples: &mut u64,
+    ) -> Predictor {
+        let (spp, at) = match (predictor, self.opts.method) {
+            (Some(p), _) => return p,
+            (None, Method::Paper(CBeta::Fit { spp, at })) => (spp, at),
+            (None, _) => unreachable!("only a fitted c_beta leaves the predictor open"),
+        };
+        let albedos = self.albedos;
+        self.bar.set_message("fitting c_beta");
+        let fit_albedo = albedos.source + (albedos.target - albedos.source) * at;
+        // A seed no frame of the sequence uses.
+        let cheap = self.render_frame(
+            self.shot.camera.to_world,
+            self.shot
+                .seed
+                .wrapping_add(self.frames.len() as u64 + 1_000_003),
+            fit_albedo,
+            Some(spp),
+            false,
+        );
+        *invalid_samples += cheap.stats.invalid_samples;
+        let start = Instant::now();
+        let fit = Albedos {
+            target: fit_albedo,
+            ..albedos
+        };
+        let c_beta = fit_c_beta(&fit, &source.pixels, denoised, &cheap.image.pixels);
+        timings.fit = cheap.stats.seconds + start.elapsed().as_secs_f64();
+        self.bar.inc(1);
+        Predictor::Paper { c_beta }
+    }
+
+    /// Step 4's prediction at the target albedo from the source image and the filtered
+    /// gradient (the control's blended radiance as it is), through OIDN where it filters
+    /// the prediction; and how many channel values fell back to R_s.
+    fn predict(
+        &self,
+        predictor: &Predictor,
+        source: &Image,
+        denoised: &[[f32; 3]],
+        seen_emission: Option<&Image>,
+    ) -> Result<(Vec<[f32; 3]>, usize), RegularizeError> {
+        let method = self.opts.method;
+        let (mut predicted, fallbacks) = match method {
+            Method::Radiance => (denoised.to_vec(), 0),
+            _ => predictor.predict(&self.albedos, &source.pixels, denoised),
+        };
+        if self.opts.oidn == OidnUse::Prediction && method != Method::Radiance {
+            let image = as_image(source.width, source.height, predicted);
+            predicted = denoise::oidn(&image, seen_emission, None, AuxUse::None)
                 .map_err(RegularizeError::Denoise)?
                 .pixels;
         }
-        (OidnUse::Prediction, _) => {}
+        Ok((predicted, fallbacks))
     }
-    timings.denoise_and_predict = start.elapsed().as_secs_f64();
-
-    // Step 4: c_β, then the prediction.
-    let predictor = match (predictor, opts.method) {
-        (Some(p), _) => p,
-        (None, Method::Paper(CBeta::Fit { spp, at })) => {
-            bar.set_message("fitting c_beta");
-            let fit_albedo = albedos.source + (albedos.target - albedos.source) * at;
-            // A seed no frame of the sequence uses.
-            let cheap = render_frame(
-                camera0.to_world,
-                seed0.wrapping_add(n as u64 + 1_000_003),
-                fit_albedo,
-                Some(spp),
-                false,
-            );
-            invalid_samples += cheap.stats.invalid_samples;
-            let start = Instant::now();
-            let fit = Albedos {
-                target: fit_albedo,
-                ..albedos
-            };
-            let c_beta = fit_c_beta(&fit, &source.pixels, &denoised, &cheap.image.pixels);
-            timings.fit = cheap.stats.seconds + start.elapsed().as_secs_f64();
-            bar.inc(1);
-            Predictor::Paper { c_beta }
-        }
-        (None, _) => unreachable!("only a fitted c_beta leaves the predictor open"),
-    };
-    let start = Instant::now();
-    let (mut predicted, fallbacks) = match opts.method {
-        Method::Radiance => (denoised.clone(), 0),
-        _ => predictor.predict(&albedos, &source.pixels, &denoised),
-    };
-    if opts.oidn == OidnUse::Prediction && opts.method != Method::Radiance {
-        predicted = denoise::oidn(
-            &as_image(predicted),
-            seen_emission.as_ref(),
-            None,
-            AuxUse::None,
-        )
-        .map_err(RegularizeError::Denoise)?
-        .pixels;
-    }
-    timings.denoise_and_predict += start.elapsed().as_secs_f64();
-    bar.finish_and_clear();
-
-    let image = as_image;
-    let c_beta = match predictor {
-        Predictor::Paper { c_beta } => Some(c_beta),
-        _ => None,
-    };
-    Ok(Regularized {
-        predicted: image(predicted),
-        raw_gradient: gradients.swap_remove(0),
-        blended: image(blended),
-        gradient: image(denoised),
-        seen_emission,
-        source,
-        albedos,
-        c_beta,
-        fallbacks,
-        mean_frames,
-        frames_rendered: n,
-        timings,
-        invalid_samples,
-        pilot,
-        pilot_unaffordable,
-        oidn_check: None,
-    })
 }
 
 /// The point whose screen motion is Eq. 9's motion vector: the orbit's target, else
