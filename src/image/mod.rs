@@ -2,6 +2,7 @@
 //! (row 0 at the top, as Mitsuba writes them) and a tonemapped sRGB PNG preview. Files are written to a temporary name and renamed, so an
 //! interrupted run never leaves a corrupt image.
 
+pub mod component_format;
 pub mod merge;
 pub mod stats;
 
@@ -9,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::scene::film::{dequantize_uint32, quantize_uint32, ComponentFormat};
+use component_format::{dequantize_uint32, quantize_uint32, ComponentFormat};
 
 /// A rendered image: the crop window, row-major linear RGB.
 #[derive(Clone, Debug)]
