@@ -203,6 +203,16 @@ mod imp {
 mod tests {
     use super::*;
 
+    /// The width this build runs, where the test command says which it built for
+    /// (`MEDIAREG_EXPECT_LANES`: scripts/test builds the other width too, and this
+    /// fails if that build did not get it).
+    #[test]
+    fn the_build_has_the_width_asked_for() {
+        if let Ok(w) = std::env::var("MEDIAREG_EXPECT_LANES") {
+            assert_eq!(WIDTH.to_string(), w, "this build's lanes");
+        }
+    }
+
     fn lanes(f: impl Fn(usize) -> f32) -> Lanes {
         Lanes::load(&std::array::from_fn(f))
     }
