@@ -255,3 +255,55 @@ def test_denoise_arrays():
         mediareg.denoise(noisy, normal=albedo)
     with pytest.raises(ValueError, match="oidn"):
         mediareg.render(s, spp=1, denoise="bilateral")
+
+
+OIDN_PROBE = textwrap.dedent("""
+    import json, sys
+    import numpy as np
+    import mediareg
+    root = sys.argv[1]
+    cbox = mediareg.load_file(root + "/mitsuba_scenes/cbox.xml", res=8)
+    cube = mediareg.load_file(root + "/mitsuba_scenes/medium_cube.xml", res=8)
+    calls = {
+        "denoise": lambda: mediareg.denoise(np.full((8, 8, 3), 0.5, np.float32)),
+        "render": lambda: mediareg.render(cbox, spp=1, denoise="oidn"),
+        "regularize": lambda: mediareg.regularize(cube, spp=1, frames=1, denoise="oidn"),
+    }
+    out = {}
+    for name, call in calls.items():
+        try:
+            call()
+            out[name] = None
+        except Exception as e:
+            out[name] = [type(e).__name__, str(e)]
+    print(json.dumps(out))
+""")
+
+
+def oidn_calls(library):
+    """denoise, render(denoise="oidn") and regularize(denoise="oidn") in a fresh process
+    (the library is loaded once a process) with MEDIAREG_OIDN = `library` (None: unset):
+    each call's exception as [type, message], or None where it returned."""
+    env = dict(os.environ)
+    env.pop("MEDIAREG_OIDN", None)
+    if library is not None:
+        env["MEDIAREG_OIDN"] = library
+    r = subprocess.run([sys.executable, "-c", OIDN_PROBE, str(ROOT)], env=env,
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    import json
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def test_a_missing_or_wrong_oidn_is_a_clear_error_in_python():
+    # Nothing at the path: each call raises, saying so and how to get the library.
+    for name, err in oidn_calls("/nonexistent/libOpenImageDenoise.so.1.4.3").items():
+        assert err is not None, f"{name} returned without the library"
+        assert "not found" in err[1] and "scripts/fetch_oidn" in err[1], (name, err)
+    # A library that is not OIDN (the C library's maths).
+    for name, err in oidn_calls("/usr/lib/x86_64-linux-gnu/libm.so.6").items():
+        assert err is not None, f"{name} returned with libm as OIDN"
+        assert "no function oidnNewDevice" in err[1], (name, err)
+    # The library found as scripts/fetch_oidn puts it: every call returns (so the
+    # checks above see the missing library, not some other failure).
+    assert oidn_calls(None) == {"denoise": None, "render": None, "regularize": None}
