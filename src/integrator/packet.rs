@@ -30,9 +30,13 @@
 //! * a shape's exit is its far side and its entry the near one (a sphere's roots in
 //!   the forms without cancellation, a box's slabs), and the surface a path leaves is
 //!   skipped instead of offsetting the ray (the side a path is on is its state);
-//! * Henyey–Greenstein sampling is `medium::phase`'s by the distance from the peak, in
-//!   f32 (the packet takes |g| ≤ [`MAX_ABS_G`] only); Lambert's cosine law by the
-//!   polar map instead of the concentric one.
+//! * Henyey–Greenstein sampling is `medium::phase`'s kernel in f32 where the scalar
+//!   path runs it in f64 (the packet takes |g| ≤ [`MAX_ABS_G`] only).
+//!
+//! The physics is not written here: every kernel (phase, Fresnel, MIS, roulette, the
+//! hero channel's weights, cosine and cone sampling, flights, transmittance, tracking
+//! steps) is the scalar path's, written once over `simd::Float` and run in lanes
+//! (`kernel_tests` holds each lane to the scalar result).
 
 mod boundary;
 mod emitters;

@@ -73,8 +73,7 @@ pub fn hg_sample<F: Float>(g: F, u: F) -> (F, F) {
     (hg_angle(g, peak), hg_peak(g, peak))
 }
 
-/// [`hg_sample`]'s angle alone, where the pdf is not wanted (LLVM keeps the unused
-/// pdf's divisions and square root in lanes: 10% of a furnace's time).
+/// [`hg_sample`]'s angle alone, where the pdf is not wanted (the lanes' phase sample).
 #[inline(always)]
 pub fn hg_sample_angle<F: Float>(g: F, u: F) -> F {
     hg_angle(g, hg_sample_peak_distance(g, u))
