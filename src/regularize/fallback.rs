@@ -167,3 +167,68 @@ pub fn plain_or_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> 
         invalid_samples: renders.iter().map(|r| r.stats.invalid_samples).sum(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Pcg32;
+
+    /// (F1)–(F2) on images with a known answer: a truth T, M = T + noise of variance
+    /// σ_M², A and B = T + independent noise of variance σ_A², and a "denoiser" O = T + b
+    /// (its squared error b²). Var(A) must come out σ_A² and Δ = b² − σ_M², each within 4
+    /// of its own standard errors; Δ with O = T + 2b (3b² more) must not. Seen failing
+    /// with (F1)'s ½ left out (Δ doubled).
+    #[test]
+    fn the_check_measures_a_known_error_and_variance() {
+        let (w, h) = (128, 96);
+        let mut rng = Pcg32::new(57, 3);
+        let mut gauss = || {
+            let (u, v) = (rng.next_1d().max(1e-7), rng.next_1d());
+            (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
+        };
+        let (sigma_m, sigma_a, b) = (0.02f32, 0.05f32, 0.03f32);
+        let n = w * h;
+        let truth: Vec<[f32; 3]> = (0..n)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                [0.2 + 0.5 * (x / w as f32), 0.4 + 0.3 * (y / h as f32), 0.6]
+            })
+            .collect();
+        let mut noisy = |sigma: f32| Image {
+            width: w,
+            height: h,
+            pixels: truth
+                .iter()
+                .map(|t| t.map(|c| c + sigma * gauss()))
+                .collect(),
+        };
+        let (m, a, bb) = (noisy(sigma_m), noisy(sigma_a), noisy(sigma_a));
+        let shifted = |by: f32| Image {
+            width: w,
+            height: h,
+            pixels: truth.iter().map(|t| t.map(|c| c + by)).collect(),
+        };
+        let (var_a, delta, delta_se) = measure(&shifted(b), &m, &a, &bb);
+        // Var of a variance estimate from n·3 normal values: 2σ⁴ / (3n).
+        let var_se = (2.0 / (3.0 * n as f64)).sqrt() * (sigma_a as f64).powi(2);
+        let want_var = (sigma_a as f64).powi(2);
+        assert!(
+            (var_a - want_var).abs() < 4.0 * var_se,
+            "Var(A) {var_a} against {want_var}"
+        );
+        let want = (b as f64).powi(2) - (sigma_m as f64).powi(2);
+        assert!(
+            delta_se > 0.0 && delta_se < 0.1 * want,
+            "Δ's standard error {delta_se}"
+        );
+        assert!(
+            (delta - want).abs() < 4.0 * delta_se,
+            "Δ {delta} ± {delta_se} against {want}"
+        );
+        let (_, worse, _) = measure(&shifted(2.0 * b), &m, &a, &bb);
+        assert!(
+            (worse - want).abs() > 4.0 * delta_se,
+            "a denoiser with 4× the squared error went unseen: Δ {worse}"
+        );
+    }
+}
