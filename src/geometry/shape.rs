@@ -137,6 +137,32 @@ pub struct ConeDirection<F: Float> {
     pub inside: F::Mask,
 }
 
+/// The cone a sphere of `radius` fills, seen from a point `c` away from its centre.
+struct VisibleCone<F: Float> {
+    /// |c|².
+    dc2: F,
+    /// sin² θ_max = r² / |c|², and cos θ_max.
+    sin2_max: F,
+    cos_max: F,
+    /// Where the point is inside the sphere (deeper than the ray epsilon): no cone.
+    inside: F::Mask,
+}
+
+#[inline(always)]
+fn visible_cone<F: Float>(c: Vector3<F>, radius: f32) -> VisibleCone<F> {
+    let dc2 = c.dot(c);
+    // Mitsuba shrinks the radius by RayEpsilon: points on the surface count as outside
+    // (a vertex on the light sees the hemisphere it fills).
+    let r_adj = radius * (1.0 - super::RAY_EPSILON);
+    let sin2_max = F::of((radius * radius) as f64) / dc2;
+    VisibleCone {
+        dc2,
+        sin2_max,
+        cos_max: (F::one() - sin2_max).max(F::zero()).sqrt(),
+        inside: dc2.le(F::of((r_adj * r_adj) as f64)),
+    }
+}
+
 /// A direction uniform in the cone of the cap of the sphere (`center`, `radius`) visible
 /// from `p`, pdf 1 / (2π (1 − cos θ_max)), and the distance to the nearer root,
 ///   t = (|c|² − r²) / (|c| cos θ + √(r² − |c|² sin² θ)),   c = center − p,
@@ -159,14 +185,13 @@ pub fn sample_sphere_cone<F: Float>(
 ) -> ConeDirection<F> {
     let (zero, one) = (F::zero(), F::one());
     let c = center.sub(p);
-    let dc2 = c.dot(c);
-    // Mitsuba shrinks the radius by RayEpsilon: points on the surface count as outside
-    // (a vertex on the light sees the hemisphere it fills).
-    let r_adj = radius * (1.0 - super::RAY_EPSILON);
-    let inside = dc2.le(F::of((r_adj * r_adj) as f64));
+    let VisibleCone {
+        dc2,
+        sin2_max,
+        cos_max,
+        inside,
+    } = visible_cone(c, radius);
     let r2 = F::of((radius * radius) as f64);
-    let sin2_max = r2 / dc2;
-    let cos_max = (one - sin2_max).max(zero).sqrt();
     let wide_cone = sin2_max.gt(F::of(0.000_685_23f32 as f64));
     let cos_wide = (cos_max - one) * u1 + one;
     let sin2_small = sin2_max * u1;
@@ -245,21 +270,6 @@ impl Sphere {
         4.0 * std::f32::consts::PI * self.radius * self.radius
     }
 
-    /// cos of the half-angle of the cone the sphere fills as seen from `p`, or `None`
-    /// when `p` is inside the sphere (deeper than the ray epsilon).
-    #[inline]
-    fn cone_cos_max(&self, p: Vec3A) -> Option<(f32, f32)> {
-        let dc2 = (self.center - p).length_squared();
-        // Mitsuba shrinks the radius by RayEpsilon: points on the surface count as outside
-        // (a vertex on the light sees the hemisphere it fills).
-        let r_adj = self.radius * (1.0 - super::RAY_EPSILON);
-        if dc2 <= r_adj * r_adj {
-            return None;
-        }
-        let sin2 = self.radius * self.radius / dc2;
-        Some(((1.0 - sin2).max(0.0).sqrt(), sin2))
-    }
-
     /// Mitsuba's `Sphere::sample_direction` from outside: a direction uniform in the cone
     /// of the visible cap (pdf `1 / (2π (1 − cos θ_max))`), and the point it hits
     /// ([`sample_sphere_cone`]). Returns the sample, or `None` from inside.
@@ -283,7 +293,8 @@ impl Sphere {
     /// The pdf `sample_cone` gives any direction toward the sphere from `p_ref`, or `None`
     /// from inside.
     pub fn cone_pdf(&self, p_ref: Vec3A) -> Option<f32> {
-        self.cone_cos_max(p_ref).map(|(c, _)| cone_pdf(c))
+        let cone = visible_cone(Vector3::from(self.center - p_ref), self.radius);
+        (!cone.inside).then(|| cone_pdf(cone.cos_max))
     }
 
     pub fn bounds(&self) -> Bounds {
