@@ -516,15 +516,7 @@ fn run_baselines(ctx: &SceneRun, run: &mut TableRun) -> Result<Baselines> {
         };
         let shot = scene.shot.with(spp, seed.wrapping_add(10));
         let r = render(scene, &shot, &ctx.with_seen);
-        let (img, t) = volpath_oidn(scene, &shot, &r)?;
-        let out = MethodImage::baseline(
-            Method::VolpathOidn,
-            Accounting::Frame,
-            &img,
-            spp,
-            r.stats.seconds + t,
-        );
-        ctx.push(run, out)?;
+        push_volpath_oidn(ctx, run, (&shot, &r), Accounting::Frame, spp)?;
     }
     Ok(Baselines {
         volpath_per_spp,
@@ -561,17 +553,29 @@ fn run_still_baselines(
         ctx.push(run, out)?;
     }
     if baselines.oidn_seconds.is_some() {
-        let (img, t) = volpath_oidn(scene, &shot, &r)?;
-        let out = MethodImage::baseline(
-            Method::VolpathOidn,
-            Accounting::Still,
-            &img,
-            spp,
-            r.stats.seconds + t,
-        );
-        ctx.push(run, out)?;
+        push_volpath_oidn(ctx, run, (&shot, &r), Accounting::Still, spp)?;
     }
     Ok(())
+}
+
+/// The render `r` of `shot` (`spp` samples) through OIDN: volpath_oidn's row, charged
+/// the render's time and OIDN's.
+fn push_volpath_oidn(
+    ctx: &SceneRun,
+    run: &mut TableRun,
+    (shot, r): (&Shot, &Rendered),
+    accounting: Accounting,
+    spp: u32,
+) -> Result<()> {
+    let (img, t) = volpath_oidn(&ctx.scene, shot, r)?;
+    let out = MethodImage::baseline(
+        Method::VolpathOidn,
+        accounting,
+        &img,
+        spp,
+        r.stats.seconds + t,
+    );
+    ctx.push(run, out).map(|_| ())
 }
 
 /// Mitsuba 3 on the same file: its row, or a note saying why it did not run.
