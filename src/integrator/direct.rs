@@ -51,9 +51,9 @@ pub fn sample(
     // `valid`: the ray hit a surface (Mitsuba's `valid_ray`: the film's alpha).
     let done = |radiance, valid| PathSample {
         radiance,
-        second: Vec3::ZERO,
         seen_emission,
         valid,
+        ..Default::default()
     };
     let Some(h) = si else {
         return done(result, false);

@@ -13,7 +13,9 @@ pub mod roulette;
 pub mod sample;
 pub mod volpath;
 
-pub use gradient::{albedo_gradient, GradientError};
+pub use gradient::{
+    albedo_gradient, derivative_images, medium_gradient, GradientError, MediumParam,
+};
 pub use sample::PathSample;
 
 pub use render::{render, RenderOptions, RenderStats, Rendered};

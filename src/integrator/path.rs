@@ -140,9 +140,9 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
     if valid_ray {
         PathSample {
             radiance: result,
-            second: Vec3::ZERO,
             seen_emission,
             valid: true,
+            ..Default::default()
         }
     } else {
         PathSample::default()

@@ -94,6 +94,9 @@ pub fn packet_scene(
     if opts.scalar_paths || std::env::var("MEDIAREG_PATHS").is_ok_and(|v| v == "scalar") {
         return Err("scalar paths asked for".into());
     }
+    if opts.gradient.beyond_albedo() {
+        return Err("the lane path estimates the albedo's derivative only".into());
+    }
     let ps = PacketScene::new(scene)?;
     // The camera rays start on the near plane, a rectangle: its corners inside the
     // (convex) shape of the camera's medium put every ray's origin there.
@@ -182,6 +185,10 @@ fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
 pub struct Rendered {
     pub image: Image,
     pub gradient: Option<Image>,
+    /// d/dσ_t (d/d scale in a heterogeneous medium) and d/dg of the medium asked for
+    /// (`volpath::MediumParams`), unscaled: `integrator::derivatives` names them.
+    pub d_sigma: Option<Image>,
+    pub d_g: Option<Image>,
     pub seen_emission: Option<Image>,
     pub alpha: Option<Image>,
     pub stats: RenderStats,
@@ -192,6 +199,8 @@ pub struct Rendered {
 struct Blocks {
     radiance: ImageBlock,
     second: Option<ImageBlock>,
+    d_sigma: Option<ImageBlock>,
+    d_g: Option<ImageBlock>,
     seen: Option<ImageBlock>,
     alpha: Option<ImageBlock>,
 }
@@ -200,6 +209,8 @@ struct Blocks {
 #[derive(Clone, Copy)]
 struct Wanted {
     second: bool,
+    d_sigma: bool,
+    d_g: bool,
     seen: bool,
     alpha: bool,
 }
@@ -210,6 +221,8 @@ impl Blocks {
         Blocks {
             radiance: b(),
             second: wanted.second.then(b),
+            d_sigma: wanted.d_sigma.then(b),
+            d_g: wanted.d_g.then(b),
             seen: wanted.seen.then(b),
             alpha: wanted.alpha.then(b),
         }
@@ -219,6 +232,12 @@ impl Blocks {
         self.radiance.put(p, s.radiance, filter);
         if let Some(b) = &mut self.second {
             b.put(p, s.second, filter);
+        }
+        if let Some(b) = &mut self.d_sigma {
+            b.put(p, s.d_sigma, filter);
+        }
+        if let Some(b) = &mut self.d_g {
+            b.put(p, s.d_g, filter);
         }
         if let Some(b) = &mut self.seen {
             b.put(p, s.seen_emission, filter);
@@ -232,6 +251,8 @@ impl Blocks {
         self.radiance.accumulate_into(&mut target.radiance);
         for (from, to) in [
             (&self.second, &mut target.second),
+            (&self.d_sigma, &mut target.d_sigma),
+            (&self.d_g, &mut target.d_g),
             (&self.seen, &mut target.seen),
             (&self.alpha, &mut target.alpha),
         ] {
@@ -248,9 +269,10 @@ impl Blocks {
 pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     let show_progress = opts.show_progress;
     let gradient = opts.gradient;
-    let with_gradient = gradient != volpath::Gradient::None;
     let wanted = Wanted {
-        second: with_gradient,
+        second: gradient.has_second(),
+        d_sigma: gradient.extinction_medium().is_some(),
+        d_g: gradient.g_medium().is_some(),
         seen: opts.seen_emission,
         alpha: shot.film.pixel_format.has_alpha(),
     };
@@ -333,6 +355,8 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                 let mut splat = |pos: Vec2, mut s: PathSample| {
                     if !(s.radiance.is_finite()
                         && s.second.is_finite()
+                        && s.d_sigma.is_finite()
+                        && s.d_g.is_finite()
                         && s.seen_emission.is_finite())
                     {
                         invalid += 1;
@@ -414,6 +438,8 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     Rendered {
         image,
         gradient: full.second.as_ref().map(as_image),
+        d_sigma: full.d_sigma.as_ref().map(as_image),
+        d_g: full.d_g.as_ref().map(as_image),
         seen_emission,
         alpha: full.alpha.as_ref().map(as_image),
         stats: RenderStats {

@@ -12,6 +12,10 @@ use glam::Vec3;
 pub struct PathSample {
     pub radiance: Vec3,
     pub second: Vec3,
+    /// The derivatives in the chosen medium's extinction and phase asymmetry, where
+    /// asked for (`volpath::MediumParams`; 0 otherwise).
+    pub d_sigma: Vec3,
+    pub d_g: Vec3,
     pub seen_emission: Vec3,
     /// Mitsuba's `valid_ray`, the film's alpha: the path met something (a visible
     /// environment, a scattering in a medium, a surface it did not pass through).

@@ -84,34 +84,40 @@ fn medium_beyond(info: &ShapeInfo, along_normal: bool, current: Option<u32>) -> 
     }
 }
 
-/// Emitter sampling from the medium point `p` of `m` (in `medium`), light leaving it
-/// against `d_in`: phase · L · T / p_select, MIS-weighted (power heuristic) against
-/// phase sampling; zero when nothing arrives. `free` is a distance `p` is known to lie
-/// from every surface (the clearance there, or 0 if none is known), for the shadow
-/// ray's roulette.
+/// An emitter sample from a medium vertex: what it adds (phase · L · T / p_select,
+/// MIS-weighted), ∂ ln T / ∂θ of its shadow ray for a differentiated extinction, and
+/// its direction (for the phase's own derivative).
+struct MediumLight {
+    value: Vec3,
+    d_log_tr: Vec3,
+    d: Vec3A,
+}
+
+/// Emitter sampling from the point `p` in `medium`, light leaving it against `d_in`,
+/// MIS-weighted (power heuristic) against phase sampling; None when nothing arrives.
+/// `free` is a distance `p` is known to lie from every surface (the clearance there,
+/// or 0 if none is known), for the shadow ray's roulette; `extinction` the medium whose
+/// extinction is differentiated, if any.
 #[inline]
 fn medium_emitter_sample(
     scene: &Scene,
-    m: &HomogeneousMedium,
-    medium: Option<u32>,
+    medium: u32,
     p: Vec3A,
     d_in: Vec3A,
     free: f32,
+    extinction: Option<u32>,
     rng: &mut Pcg32,
-) -> Vec3 {
+) -> Option<MediumLight> {
+    let m: &HomogeneousMedium = &scene.media[medium as usize];
     // (Where no emitter sample can arrive, none is drawn: see Scene::emitters_unreachable.)
-    if !m.sample_emitters || medium.is_some_and(|mi| scene.emitters_unreachable[mi as usize]) {
-        return Vec3::ZERO;
+    if !m.sample_emitters || scene.emitters_unreachable[medium as usize] {
+        return None;
     }
     // None where there is no emitter to pick (none at all, or only a sky left to
     // phase sampling).
-    let Some((idx, u, p_select)) = scene.emitter_selection.select(p, rng.next_2d()) else {
-        return Vec3::ZERO;
-    };
+    let (idx, u, p_select) = scene.emitter_selection.select(p, rng.next_2d())?;
     let e = &scene.emitters[idx];
-    let Some(es) = e.sample_direction(p, u, &scene.geometries, &scene.bsphere) else {
-        return Vec3::ZERO;
-    };
+    let es = e.sample_direction(p, u, &scene.geometries, &scene.bsphere)?;
     let phase_val = m.phase.eval(d_in.dot(es.d));
     let dist = (es.p - p).length() * (1.0 - SHADOW_EPSILON);
     // Russian roulette on the shadow ray by the bound on what it can carry: it runs at
@@ -129,22 +135,32 @@ fn medium_emitter_sample(
     } else {
         1.0
     };
-    let tr = if q >= 1.0 {
-        shadow_transmittance(scene, p, es.d, dist, medium, rng)
-    } else if q > 0.0 && rng.next_1d() < q {
-        shadow_transmittance(scene, p, es.d, dist, medium, rng) / q
-    } else {
-        return Vec3::ZERO;
+    let ray = ShadowRay {
+        o: p,
+        d: es.d,
+        dist,
+        medium: Some(medium),
     };
-    if tr == Vec3::ZERO {
-        return Vec3::ZERO;
+    if q < 1.0 && !(q > 0.0 && rng.next_1d() < q) {
+        return None;
+    }
+    let mut through = shadow_transmittance(scene, ray, extinction, rng);
+    if q < 1.0 {
+        through.tr /= q;
+    }
+    if through.tr == Vec3::ZERO {
+        return None;
     }
     let w = if es.delta {
         1.0
     } else {
         mis_weight(es.pdf * p_select, phase_val)
     };
-    phase_val * es.weight * tr / p_select * w
+    Some(MediumLight {
+        value: phase_val * es.weight * through.tr / p_select * w,
+        d_log_tr: through.d_log,
+        d: es.d,
+    })
 }
 
 /// Where the path last scattered (for MIS of emitter hits).
@@ -206,6 +222,35 @@ pub enum Gradient {
     /// differentiated; Russian roulette detached as for the derivative, its q from the
     /// target's weight β_t, the same at every source albedo).
     Difference { medium: u32, target: Vec3 },
+    /// Derivatives in several parameters of one medium at once (`MediumParams`): the
+    /// albedo's in `PathSample::second`, the extinction's and the phase asymmetry's in
+    /// `PathSample::d_sigma` and `d_g`.
+    Medium { medium: u32, params: MediumParams },
+}
+
+/// Which parameters of one medium a render differentiates (`Gradient::Medium`).
+///
+/// Each is forward mode beside β with sampling detached (the paper's Eq. 6–8 for the
+/// albedo, generalised): a path's pdf is held fixed and its contribution f
+/// differentiated factor by factor, so a sample of ∂f/∂θ / p is β times the sum of
+/// ∂ ln(factor)/∂θ over the path's factors that depend on θ. MIS weights are detached
+/// too: they sum to 1 at every θ, so their derivatives cancel in expectation.
+/// * extinction (homogeneous; d/dσ_t,c per channel, σ_t with `scale` applied): a
+///   segment of length s in the medium attenuates by e^{−σ_t s}, ∂ ln = −s; a collision
+///   weighs σ_s = α σ_t, ∂ ln = 1/σ_t; a shadow ray's transmittance through the medium
+///   likewise (−s per segment in it).
+/// * extinction of a heterogeneous medium: d/d`scale`, σ_t(x) = scale · σ(x): a segment
+///   attenuates by e^{−scale ∫σ}, ∂ ln = −∫σ, estimated without bias by one uniform
+///   point of the segment, (length) σ(x_u), drawn apart from the tracking; a real
+///   collision ∂ ln = 1/scale. Delta tracking and ratio tracking are unbiased for any
+///   function of where they end, so the factors' derivatives ride on their weights.
+/// * g (HG phase): each phase value on the path, sampled (f/p = 1) or evaluated for an
+///   emitter sample, ∂ ln p_HG / ∂g (`medium::phase::hg_log_derivative_g`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MediumParams {
+    pub albedo: bool,
+    pub extinction: bool,
+    pub g: bool,
 }
 
 impl Gradient {
@@ -215,7 +260,42 @@ impl Gradient {
             Gradient::Albedo(m)
             | Gradient::AlbedoIgnoringNeeVertex(m)
             | Gradient::Difference { medium: m, .. } => Some(m),
+            Gradient::Medium { medium, params } => params.albedo.then_some(medium),
         }
+    }
+
+    /// The medium whose extinction is differentiated, if any.
+    #[inline]
+    pub fn extinction_medium(self) -> Option<u32> {
+        match self {
+            Gradient::Medium { medium, params } if params.extinction => Some(medium),
+            _ => None,
+        }
+    }
+
+    /// The medium whose phase asymmetry g is differentiated, if any.
+    #[inline]
+    pub fn g_medium(self) -> Option<u32> {
+        match self {
+            Gradient::Medium { medium, params } if params.g => Some(medium),
+            _ => None,
+        }
+    }
+
+    /// Whether the render estimates the albedo's derivative (or the difference) into
+    /// `PathSample::second`.
+    pub fn has_second(self) -> bool {
+        match self {
+            Gradient::None => false,
+            Gradient::Medium { params, .. } => params.albedo,
+            _ => true,
+        }
+    }
+
+    /// Whether the render estimates more than the albedo's derivative (the lane path
+    /// does not).
+    pub fn beyond_albedo(self) -> bool {
+        self.extinction_medium().is_some() || self.g_medium().is_some()
     }
 
     /// How a scattering vertex in medium `mi` of albedo `albedo` updates dβ, the
@@ -276,7 +356,7 @@ pub fn sample(
             continue;
         }
         // ---- Surface interaction (or escape) ----
-        if !path.at_surface(scene, flight, rng) {
+        if !path.at_surface(scene, settings, flight, rng) {
             break;
         }
     }
@@ -294,4 +374,4 @@ mod shadow;
 mod tests;
 
 use path::{Flight, PathState};
-use shadow::shadow_transmittance;
+use shadow::{shadow_transmittance, ShadowRay};

@@ -66,6 +66,7 @@ impl Builder<'_> {
         self.media.push(HomogeneousMedium {
             albedo: Vec3::ONE,
             sigma_t: Vec3::splat(majorant),
+            scale: scale as f32,
             phase,
             sample_emitters,
             id: medium_id,

@@ -98,6 +98,7 @@ impl Builder<'_> {
         self.media.push(HomogeneousMedium {
             albedo,
             sigma_t: sigma_t * scale as f32,
+            scale: scale as f32,
             phase,
             sample_emitters,
             id: medium_id,

@@ -27,6 +27,8 @@ pub struct HomogeneousMedium {
     pub albedo: Vec3,
     /// Extinction σ_t (already multiplied by `scale`), per channel, ≥ 0.
     pub sigma_t: Vec3,
+    /// The XML `scale` (σ_t above holds it; a heterogeneous medium's is its own).
+    pub scale: f32,
     pub phase: Phase,
     /// Next-event estimation at scattering vertices in this medium (Mitsuba's
     /// `sample_emitters`, default true).
@@ -145,6 +147,7 @@ mod tests {
         let m = HomogeneousMedium {
             albedo: Vec3::splat(0.5),
             sigma_t: Vec3::new(2.0, 5.0, 0.0),
+            scale: 1.0,
             phase: Phase::Isotropic,
             sample_emitters: true,
             id: None,

@@ -93,6 +93,18 @@ pub fn direction_at<F: Float>(d: Vector3<F>, w: F, u: F) -> Vector3<F> {
     around(d, F::one() - w, sin_theta, u)
 }
 
+/// ∂ ln p_HG / ∂g at 1 − cos θ = `w` (the score of g, for its derivative with sampling
+/// detached): ln p_HG = ln(1 − g²) − (3/2) ln D with D = 1 + g² − 2g cos θ, so
+///   ∂ ln p_HG / ∂g = −2g / (1 − g²) − 3 (g − cos θ) / D,
+/// D in [`hg_peak`]'s cancellation-free form and g − cos θ = g − 1 + w.
+#[inline]
+pub fn hg_log_derivative_g(g: f64, w: f64) -> f64 {
+    let a = g.abs();
+    let peak = if g >= 0.0 { w } else { 2.0 - w };
+    let denom = (1.0 - a) * (1.0 - a) + 2.0 * a * peak;
+    -2.0 * g / (1.0 - g * g) - 3.0 * (g - 1.0 + w) / denom
+}
+
 /// p_R(cos θ) = 3/(16π) (1 + cos² θ).
 #[inline]
 fn rayleigh(cos_theta: f64) -> f64 {
@@ -133,9 +145,26 @@ impl Phase {
         }
     }
 
+    /// ∂ ln p / ∂g at 1 − cos θ = `w` ([`hg_log_derivative_g`]); 0 for a phase function
+    /// without g.
+    #[inline]
+    pub fn log_derivative_g(&self, w: f64) -> f32 {
+        match *self {
+            Phase::HenyeyGreenstein { g } => hg_log_derivative_g(g as f64, w) as f32,
+            Phase::Isotropic | Phase::Rayleigh => 0.0,
+        }
+    }
+
     /// Samples d_out for light travelling along `d_in`; returns (d_out, pdf).
     #[inline]
     pub fn sample(&self, d_in: Vec3A, u: Vec2) -> (Vec3A, f32) {
+        let (d_out, pdf, _) = self.sample_angle(d_in, u);
+        (d_out, pdf)
+    }
+
+    /// [`Phase::sample`] with the sample's 1 − cos θ, in f64 (for the g derivative).
+    #[inline]
+    pub fn sample_angle(&self, d_in: Vec3A, u: Vec2) -> (Vec3A, f32, f64) {
         let (w, pdf) = match *self {
             Phase::HenyeyGreenstein { g } => {
                 let (w, pdf) = hg_sample(g as f64, u.x as f64);
@@ -150,7 +179,7 @@ impl Phase {
         // sin θ from w in f64, then the frame in f32.
         let sin_theta = (w * (2.0 - w)).max(0.0).sqrt() as f32;
         let d_out = around(d_in.into(), (1.0 - w) as f32, sin_theta, u.y).into();
-        (d_out, pdf)
+        (d_out, pdf, w)
     }
 }
 
@@ -205,6 +234,24 @@ mod tests {
             }
             mean /= (n * n) as f64;
             assert!((mean - g as f64).abs() < 2e-3, "g={g}: mean cos {mean}");
+        }
+    }
+
+    /// The g score against a central difference of ln p_HG in f64, over g and angles
+    /// (including near the peak of g = ±0.95); a sign flip or a missing term fails.
+    #[test]
+    fn hg_g_score_is_the_log_derivative() {
+        for g in [-0.95, -0.5, 0.0, 0.3, 0.8, 0.95] {
+            for w in [1e-4, 0.01, 0.2, 1.0, 1.7, 2.0 - 1e-4] {
+                let cos = 1.0 - w;
+                let h = 1e-6;
+                let fd = (hg_eval(g + h, cos).ln() - hg_eval(g - h, cos).ln()) / (2.0 * h);
+                let score = hg_log_derivative_g(g, w);
+                assert!(
+                    (score - fd).abs() <= 1e-5 * fd.abs().max(1.0),
+                    "g={g} w={w}: {score} vs {fd}"
+                );
+            }
         }
     }
 

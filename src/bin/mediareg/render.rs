@@ -9,7 +9,7 @@ use clap::Args;
 
 use mediareg::denoise::{self, AuxUse};
 use mediareg::image;
-use mediareg::integrator::{self, aovs, volpath::Gradient, GradientError};
+use mediareg::integrator::{self, aovs, volpath::Gradient, GradientError, MediumParam};
 use mediareg::scene::ray_log::{self, RayLog};
 use mediareg::scene::Scene;
 
@@ -21,12 +21,14 @@ use crate::interrupt::{install_handler, INTERRUPT};
 pub struct RenderArgs {
     #[command(flatten)]
     pub args: SceneArgs,
-    /// Also render a derivative in the same paths: `albedo` writes OUT_dalbedo.exr,
-    /// d(radiance_c)/d(albedo_c) of one medium (volpath only).
-    #[arg(long, value_enum)]
-    pub gradient: Option<GradientArg>,
-    /// The medium (its XML id) whose albedo --gradient differentiates; needed when the
-    /// scene has several.
+    /// Also render derivatives in the same paths, of one medium's parameters
+    /// (comma-separated: sigma_t, albedo, g, scale): each writes OUT_d<name>.exr
+    /// (signed float), e.g. OUT_dalbedo.exr = d(radiance_c)/d(albedo_c), OUT_dg.exr =
+    /// d(radiance_c)/dg (volpath only).
+    #[arg(long, value_name = "PARAMS")]
+    pub gradient: Option<String>,
+    /// The medium (its XML id) whose parameters --gradient differentiates; needed when
+    /// the scene has several.
     #[arg(long, value_name = "ID", requires = "gradient")]
     pub medium: Option<String>,
     /// Record every ray the render casts into the scene to FILE (for
@@ -72,11 +74,6 @@ impl From<AuxArg> for AuxUse {
     }
 }
 
-#[derive(Clone, Copy, clap::ValueEnum)]
-pub enum GradientArg {
-    Albedo,
-}
-
 pub fn run(cmd: RenderArgs) -> Result<()> {
     let RenderArgs {
         args,
@@ -98,13 +95,21 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         }
         scene_data.ray_log = Some(RayLog::default());
     }
-    let gradient = match gradient {
-        None => Gradient::None,
-        Some(GradientArg::Albedo) => integrator::albedo_gradient(&scene_data, medium.as_deref())
-            .map_err(|e| match e {
-                GradientError::NeedsVolpath => anyhow!("--gradient albedo: {e}"),
-                GradientError::Medium(m) => anyhow!("--gradient albedo: {:#}", medium_error(m)),
-            })?,
+    let params = match &gradient {
+        Some(list) => MediumParam::parse_list(list).map_err(|e| anyhow!("--gradient: {e}"))?,
+        None => Vec::new(),
+    };
+    let (gradient, medium_index) = if params.is_empty() {
+        (Gradient::None, 0)
+    } else {
+        let names: Vec<&str> = params.iter().map(|p| p.name()).collect();
+        let flag = format!("--gradient {}", names.join(","));
+        integrator::medium_gradient(&scene_data, medium.as_deref(), &params).map_err(
+            |e| match e {
+                GradientError::Medium(m) => anyhow!("{flag}: {:#}", medium_error(m)),
+                e => anyhow!("{flag}: {e}"),
+            },
+        )?
     };
 
     eprintln!("ray caster: {}", scene_data.accel.describe());
@@ -191,10 +196,13 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
             written.push(path.display().to_string());
         }
     }
-    if let Some(g) = &rendered.gradient {
-        let out_grad = sibling(&out_exr, "_dalbedo");
-        image::write_render_exr(&out_grad, g, spp)?;
-        written.push(out_grad.display().to_string());
+    let derivatives = integrator::derivative_images(&scene_data, medium_index, &params, &rendered);
+    for (param, img) in derivatives {
+        if let Some(img) = img {
+            let out_grad = sibling(&out_exr, &format!("_d{}", param.name()));
+            image::write_render_exr(&out_grad, &img, spp)?;
+            written.push(out_grad.display().to_string());
+        }
     }
     if !args.no_png {
         let out_png = out_exr.with_extension("png");

@@ -182,6 +182,7 @@ impl PacketPaths {
                 second: self.d_result.lane(k),
                 seen_emission: self.seen_emission.lane(k),
                 valid: valid >> k & 1 == 1,
+                ..Default::default()
             };
         }
     }

@@ -8,7 +8,7 @@ use glam::{Vec3, Vec3A};
 
 use super::{
     emission_seen, mean, medium_after, medium_emitter_sample, shadow_transmittance, Gradient,
-    LastScatter, PathSettings, MAX_NULL_CROSSINGS,
+    LastScatter, MediumLight, PathSettings, ShadowRay, MAX_NULL_CROSSINGS,
 };
 use crate::bsdf::Bsdf;
 use crate::geometry::offset_point;
@@ -28,6 +28,10 @@ pub(super) struct PathState {
     /// dβ/dα of the chosen medium's albedo (zero while no vertex in it), or the
     /// difference's weight.
     d_beta: Vec3,
+    /// d β / dθ for the chosen medium's extinction and phase asymmetry
+    /// (`volpath::MediumParams`; zero where not asked for).
+    d_sigma: Vec3,
+    d_g: Vec3,
     /// r_c = p_c / p_hero.
     r_u: Vec3,
     /// The product of the refractions' relative indices (for the roulette, η²).
@@ -47,6 +51,8 @@ pub(super) struct PathState {
     ray_tmax: f32,
     result: Vec3,
     d_result: Vec3,
+    d_sigma_result: Vec3,
+    d_g_result: Vec3,
     seen_emission: Vec3,
     /// Mitsuba's `valid_ray`, the film's alpha: a visible environment, a scattering in a
     /// medium, or a surface whose BSDF sample is not a null one.
@@ -88,6 +94,8 @@ impl PathState {
         PathState {
             beta: Vec3::ONE,
             d_beta: Vec3::ZERO,
+            d_sigma: Vec3::ZERO,
+            d_g: Vec3::ZERO,
             r_u: Vec3::ONE,
             eta: 1.0,
             depth: 0,
@@ -102,6 +110,8 @@ impl PathState {
             ray_tmax: tmax,
             result: Vec3::ZERO,
             d_result: Vec3::ZERO,
+            d_sigma_result: Vec3::ZERO,
+            d_g_result: Vec3::ZERO,
             seen_emission: Vec3::ZERO,
             valid: !s.hide_emitters && scene.environment.is_some(),
         }
@@ -112,6 +122,8 @@ impl PathState {
         PathSample {
             radiance: self.result,
             second: self.d_result,
+            d_sigma: self.d_sigma_result,
+            d_g: self.d_g_result,
             seen_emission: self.seen_emission,
             valid: self.valid,
         }
@@ -127,7 +139,11 @@ impl PathState {
         rng: &mut Pcg32,
     ) -> bool {
         let s = &scene.integrator;
-        if (self.beta == Vec3::ZERO && self.d_beta == Vec3::ZERO) || self.depth >= s.max_depth {
+        let no_weight = self.beta == Vec3::ZERO
+            && self.d_beta == Vec3::ZERO
+            && self.d_sigma == Vec3::ZERO
+            && self.d_g == Vec3::ZERO;
+        if no_weight || self.depth >= s.max_depth {
             return false;
         }
         if self.depth > s.rr_depth {
@@ -151,6 +167,8 @@ impl PathState {
             }
             self.beta /= q;
             self.d_beta /= q;
+            self.d_sigma /= q;
+            self.d_g /= q;
         }
         true
     }
@@ -158,7 +176,11 @@ impl PathState {
     /// Whether β, r and dβ are all finite (else the path ends).
     #[inline(always)]
     pub(super) fn weights_finite(&self) -> bool {
-        self.beta.is_finite() && self.r_u.is_finite() && self.d_beta.is_finite()
+        self.beta.is_finite()
+            && self.r_u.is_finite()
+            && self.d_beta.is_finite()
+            && self.d_sigma.is_finite()
+            && self.d_g.is_finite()
     }
 
     /// The free flight through medium `mi` from the ray's origin.
@@ -199,6 +221,10 @@ impl PathState {
         let (collision, w) = het.sample_flight(self.ray_o, self.ray_d, end, rng);
         self.beta *= w;
         self.d_beta *= w;
+        self.d_sigma *= w;
+        self.d_g *= w;
+        // d/d scale (`volpath::MediumParams`): −∫σ over the flight, 1/scale at a collision.
+        let chosen = settings.gradient.extinction_medium() == Some(mi);
         let mut flight = Flight::through_vacuum();
         match collision {
             Some(c) => {
@@ -209,10 +235,19 @@ impl PathState {
                 let (a, b) = settings.gradient.vertex_factors(mi, albedo);
                 self.d_beta = (self.d_beta * a + self.beta * b) * c.albedo;
                 self.beta *= albedo * c.albedo;
+                self.d_sigma *= albedo * c.albedo;
+                self.d_g *= albedo * c.albedo;
+                if chosen {
+                    let depth = het.depth_estimate(self.ray_o, self.ray_d, c.t);
+                    self.d_sigma += self.beta * (1.0 / het.scale - depth);
+                }
                 flight.scattered = true;
                 flight.t = c.t;
             }
             None => {
+                if chosen {
+                    self.d_sigma -= self.beta * het.depth_estimate(self.ray_o, self.ray_d, end);
+                }
                 flight.si = hit;
                 flight.t = end;
             }
@@ -252,7 +287,7 @@ impl PathState {
         flight.si = if scene.may_see_area_emitter(mi, self.ray_o, self.ray_d) {
             let full = scene.intersect_in_medium(mi, self.ray_o, self.ray_d, self.ray_tmax);
             if let Some(h) = &full {
-                flight.emission_counted = self.emission_in_expectation(scene, m, h);
+                flight.emission_counted = self.emission_in_expectation(scene, settings, mi, h);
             }
             full.filter(|h| h.t < t)
         } else if t < skip_within {
@@ -273,9 +308,11 @@ impl PathState {
     fn emission_in_expectation(
         &mut self,
         scene: &Scene,
-        m: &HomogeneousMedium,
+        settings: &PathSettings,
+        mi: u32,
         h: &SurfaceInteraction,
     ) -> bool {
+        let m = &scene.media[mi as usize];
         let le = emission_seen(
             scene,
             Some(h),
@@ -292,12 +329,21 @@ impl PathState {
         if pass.is_finite() {
             self.result += self.beta * pass * le;
             self.d_result += self.d_beta * pass * le;
+            // ∂T/∂σ_t = −t T in the chosen medium.
+            let d_sigma = match settings.gradient.extinction_medium() == Some(mi) {
+                true => self.d_sigma - self.beta * h.t,
+                false => self.d_sigma,
+            };
+            self.d_sigma_result += d_sigma * pass * le;
+            self.d_g_result += self.d_g * pass * le;
         }
         true
     }
 
     /// The homogeneous flight's weights: α at a collision, and for chromatic σ_t the
     /// hero channel's f / p (`medium::collision_weight`, `pass_weight`), then mean(r) = 1.
+    /// Where the extinction is differentiated, dβ/dσ_t beside them: f's ∂/∂σ_t with p
+    /// detached (`volpath::MediumParams`).
     #[inline(always)]
     fn flight_weights(
         &mut self,
@@ -308,6 +354,9 @@ impl PathState {
     ) {
         let albedo = settings.albedo[mi as usize];
         let hero = self.hero;
+        let chosen = settings.gradient.extinction_medium() == Some(mi);
+        // The length passed through without a collision (where none happened).
+        let passed = flight.si.as_ref().map_or(self.ray_tmax, |h| h.t);
         if m.is_grey() {
             // Grey σ_t: f and every p_c are alike, so w = T / T = 1 for passing and
             // σ_t T / (σ_t T) = 1 for a collision (exactly, in floating point too): only
@@ -317,6 +366,14 @@ impl PathState {
                 let (a, b) = settings.gradient.vertex_factors(mi, albedo);
                 self.d_beta = self.d_beta * a + self.beta * b;
                 self.beta *= albedo;
+                self.d_sigma *= albedo;
+                self.d_g *= albedo;
+                if chosen {
+                    // ∂ ln(σ_t e^{−σ_t t}) = 1/σ_t − t.
+                    self.d_sigma += self.beta * (1.0 / m.sigma_t.x - flight.t);
+                }
+            } else if chosen && passed.is_finite() {
+                self.d_sigma -= self.beta * passed;
             }
             return;
         }
@@ -335,6 +392,13 @@ impl PathState {
                 flight.d_beta_before = self.d_beta * w * albedo;
                 let (a, b) = settings.gradient.vertex_factors(mi, albedo);
                 self.d_beta = self.d_beta * w * a + self.beta * w * b;
+                self.d_sigma *= w * albedo;
+                if chosen {
+                    // ∂(σ_t T)/∂σ_t = T (1 − σ_t t), over the same (detached) p_hero.
+                    let dw = tr * (Vec3::ONE - m.sigma_t * flight.t) / (m.sigma_t[hero] * tr[hero]);
+                    self.d_sigma += self.beta * dw * albedo;
+                }
+                self.d_g *= w * albedo;
                 self.beta *= w * albedo;
                 self.r_u *= w;
                 // Weighted above (α with w), unlike the passes below.
@@ -347,8 +411,14 @@ impl PathState {
             }
         };
         if !flight.scattered {
+            if chosen && passed.is_finite() {
+                // ∂T/∂σ_t = −s T.
+                self.d_sigma -= self.beta * passed;
+            }
             self.beta *= w;
             self.d_beta *= w;
+            self.d_sigma *= w;
+            self.d_g *= w;
             self.r_u *= w;
         }
         // Keep mean(r) = 1: scaling β and r alike leaves β / mean(r) and every later
@@ -356,6 +426,8 @@ impl PathState {
         let k = mean(self.r_u);
         self.beta /= k;
         self.d_beta /= k;
+        self.d_sigma /= k;
+        self.d_g /= k;
         flight.d_beta_before /= k;
         self.r_u /= k;
     }
@@ -377,7 +449,9 @@ impl PathState {
             return false;
         }
         self.valid = true;
-        let m = &scene.media[self.medium.expect("a medium vertex") as usize];
+        let mi = self.medium.expect("a medium vertex");
+        let m = &scene.media[mi as usize];
+        let g_chosen = settings.gradient.g_medium() == Some(mi);
         let (t, p) = (flight.t, self.ray_o + self.ray_d * flight.t);
         // ---- Emitter sampling from the medium vertex ----
         // p lies within the flight's clearance less t, and within its own, which the next
@@ -390,17 +464,34 @@ impl PathState {
         } else {
             0.0
         };
-        let x = medium_emitter_sample(scene, m, self.medium, p, self.ray_d, free, rng);
-        if x != Vec3::ZERO {
+        let extinction = settings.gradient.extinction_medium();
+        let light = medium_emitter_sample(scene, mi, p, self.ray_d, free, extinction, rng);
+        if let Some(MediumLight {
+            value: x,
+            d_log_tr,
+            d,
+        }) = light
+        {
             self.result += self.beta * x;
             self.d_result += x * match settings.gradient {
                 Gradient::AlbedoIgnoringNeeVertex(_) => flight.d_beta_before,
                 _ => self.d_beta,
             };
+            // The shadow ray's ∂ ln T and the phase value's ∂ ln p / ∂g.
+            self.d_sigma_result += x * (self.d_sigma + self.beta * d_log_tr);
+            let score = match g_chosen {
+                true => m.phase.log_derivative_g(1.0 - self.ray_d.dot(d) as f64),
+                false => 0.0,
+            };
+            self.d_g_result += x * (self.d_g + self.beta * score);
         }
         self.specular_chain = !m.sample_emitters;
         // ---- Phase function sampling ----
-        let (wo, pdf) = m.phase.sample(self.ray_d, rng.next_2d());
+        // f / p = 1 (exact sampling): with p detached, ∂f/∂g / p = ∂ ln p / ∂g.
+        let (wo, pdf, w) = m.phase.sample_angle(self.ray_d, rng.next_2d());
+        if g_chosen {
+            self.d_g += self.beta * m.phase.log_derivative_g(w);
+        }
         self.last = LastScatter { p, pdf };
         self.ray_o = p;
         self.ray_d = wo;
@@ -412,7 +503,13 @@ impl PathState {
     /// boundary crossed, or emitter and BSDF sampling at a surface. False: the path
     /// ends (escaped, absorbed, or a failed sample).
     #[inline(always)]
-    pub(super) fn at_surface(&mut self, scene: &Scene, flight: Flight, rng: &mut Pcg32) -> bool {
+    pub(super) fn at_surface(
+        &mut self,
+        scene: &Scene,
+        settings: &PathSettings,
+        flight: Flight,
+        rng: &mut Pcg32,
+    ) -> bool {
         let s = &scene.integrator;
         let si = match self.medium {
             Some(_) => flight.si,
@@ -432,6 +529,8 @@ impl PathState {
             );
             self.result += self.beta * le;
             self.d_result += self.d_beta * le;
+            self.d_sigma_result += self.d_sigma * le;
+            self.d_g_result += self.d_g * le;
             // At the camera ray's first intersection, as `aovs::seen_emission` traces it.
             if self.depth == 0 && self.null_crossings == 0 && self.medium.is_none() && si.is_some()
             {
@@ -454,7 +553,7 @@ impl PathState {
             self.ray_tmax = f32::INFINITY;
             return true;
         }
-        self.scatter_at_surface(scene, &h, bsdf, rng)
+        self.scatter_at_surface(scene, settings, &h, bsdf, rng)
     }
 
     /// Emitter sampling from the surface `h`, then the BSDF's sample for the next ray.
@@ -462,6 +561,7 @@ impl PathState {
     fn scatter_at_surface(
         &mut self,
         scene: &Scene,
+        settings: &PathSettings,
         h: &SurfaceInteraction,
         bsdf: &Bsdf,
         rng: &mut Pcg32,
@@ -475,9 +575,14 @@ impl PathState {
         {
             let u = rng.next_2d();
             let medium = self.medium;
+            let extinction = settings.gradient.extinction_medium();
+            let mut d_log_tr = Vec3::ZERO;
             let transmittance = |o, d, dist| {
-                let m = medium_after(info, h.n, d, medium);
-                shadow_transmittance(scene, o, d, dist, m, rng)
+                let medium = medium_after(info, h.n, d, medium);
+                let ray = ShadowRay { o, d, dist, medium };
+                let through = shadow_transmittance(scene, ray, extinction, rng);
+                d_log_tr = through.d_log;
+                through.tr
             };
             if let Some(ls) = sample_light_at_surface(scene, h, wi, bsdf, u, transmittance) {
                 let w = if ls.delta {
@@ -487,6 +592,8 @@ impl PathState {
                 };
                 self.result += self.beta * ls.value * w;
                 self.d_result += self.d_beta * ls.value * w;
+                self.d_sigma_result += (self.d_sigma + self.beta * d_log_tr) * ls.value * w;
+                self.d_g_result += self.d_g * ls.value * w;
             }
         }
         // ---- BSDF sampling ----
@@ -501,6 +608,8 @@ impl PathState {
         let wo = h.sh_frame.to_world(bs.wo);
         self.beta *= bs.weight;
         self.d_beta *= bs.weight;
+        self.d_sigma *= bs.weight;
+        self.d_g *= bs.weight;
         self.eta *= bs.eta;
         if bs.null {
             self.null_crossings += 1;

@@ -15,89 +15,149 @@ use crate::scene::Scene;
 /// (guards against a degenerate scene trapping the ray).
 const MAX_SHADOW_CROSSINGS: u32 = 256;
 
-/// Transmittance from `o` along unit `d` over `dist`, starting in `medium`: the product
-/// of `e^{−σ_t s}` over the segments, through `null` surfaces (switching medium by the
-/// side crossed) and `thindielectric` ones (times their transmission); 0 if any other
-/// surface blocks the way.
+/// A shadow ray: from `o` along unit `d` over `dist`, starting in `medium`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct ShadowRay {
+    pub o: Vec3A,
+    pub d: Vec3A,
+    pub dist: f32,
+    pub medium: Option<u32>,
+}
+
+/// What a shadow ray lets through: its transmittance T per channel, and where the
+/// extinction of one medium is differentiated (`volpath::MediumParams`), ∂ ln T / ∂θ
+/// (−s for each segment of length s in that medium, homogeneous; −∫σ, estimated, in a
+/// heterogeneous one), so that ∂T/∂θ = T · `d_log` needs no division by T.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Transmitted {
+    pub tr: Vec3,
+    pub d_log: Vec3,
+}
+
+impl Transmitted {
+    const BLOCKED: Transmitted = Transmitted {
+        tr: Vec3::ZERO,
+        d_log: Vec3::ZERO,
+    };
+    const CLEAR: Transmitted = Transmitted {
+        tr: Vec3::ONE,
+        d_log: Vec3::ZERO,
+    };
+
+    /// Through this, then `next`.
+    #[inline]
+    fn then(self, next: Transmitted) -> Transmitted {
+        Transmitted {
+            tr: self.tr * next.tr,
+            d_log: self.d_log + next.d_log,
+        }
+    }
+}
+
+/// Transmittance along `ray`: the product of `e^{−σ_t s}` over the segments, through
+/// `null` surfaces (switching medium by the side crossed) and `thindielectric` ones
+/// (times their transmission); 0 if any other surface blocks the way. `extinction`:
+/// the medium whose extinction is differentiated, if any.
 ///
 /// Where the accelerator can, it finds every crossing in one traversal
 /// ([`Scene::crossings`]); else one ray is
 /// cast per crossing, as Mitsuba does.
 pub(super) fn shadow_transmittance(
     scene: &Scene,
-    o: Vec3A,
-    d: Vec3A,
-    dist: f32,
-    medium: Option<u32>,
+    ray: ShadowRay,
+    extinction: Option<u32>,
     rng: &mut Pcg32,
-) -> Vec3 {
+) -> Transmitted {
     let mut hits = CrossingList::new();
-    match scene.crossings(o, d, dist, &mut hits) {
-        Crossings::Blocked => Vec3::ZERO,
-        Crossings::Found => through_crossings(scene, o, d, dist, medium, &mut hits, rng),
-        Crossings::Unsupported => shadow_transmittance_stepwise(scene, o, d, dist, medium, rng),
+    match scene.crossings(ray.o, ray.d, ray.dist, &mut hits) {
+        Crossings::Blocked => Transmitted::BLOCKED,
+        Crossings::Found => through_crossings(scene, ray, extinction, &mut hits, rng),
+        Crossings::Unsupported => shadow_transmittance_stepwise(scene, ray, extinction, rng),
     }
 }
 
-/// The transmittance of a shadow ray over `dist` whose pass-through crossings
+/// The transmittance along `ray` whose pass-through crossings
 /// are `hits` (in any order): the segments between them in turn, each in the medium
 /// the previous crossing entered. A surface found twice at one distance (on an edge
 /// shared by two triangles) changes nothing: the second crossing enters the medium the
 /// first did, after a segment of length 0.
 pub(super) fn through_crossings(
     scene: &Scene,
-    o: Vec3A,
-    d: Vec3A,
-    dist: f32,
-    mut medium: Option<u32>,
+    ray: ShadowRay,
+    extinction: Option<u32>,
     hits: &mut [Crossing],
     rng: &mut Pcg32,
-) -> Vec3 {
+) -> Transmitted {
+    let ShadowRay {
+        o,
+        d,
+        dist,
+        mut medium,
+    } = ray;
     hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t));
-    let mut tr = Vec3::ONE;
+    let mut tr = Transmitted::CLEAR;
     let mut start = 0.0f32;
     for h in hits.iter() {
         if let Some(m) = medium {
-            tr *= segment_transmittance(scene, m, o + d * start, d, h.t - start, rng);
+            let seg = (o + d * start, d, h.t - start);
+            tr = tr.then(segment_transmittance(scene, m, seg, extinction, rng));
         }
         start = h.t;
         medium = medium_beyond(&scene.shapes[h.shape as usize], h.along_normal, medium);
     }
     if let Some(m) = medium {
-        tr *= segment_transmittance(scene, m, o + d * start, d, dist - start, rng);
+        let seg = (o + d * start, d, dist - start);
+        tr = tr.then(segment_transmittance(scene, m, seg, extinction, rng));
     }
     tr
 }
 
-/// The transmittance of a segment from `o` along `d` of length `len` in medium `m`:
-/// Beer–Lambert in a homogeneous medium, ratio tracking (an unbiased estimate) in a
-/// heterogeneous one.
+/// The transmittance of a segment `(o, d, len)` in medium `m`: Beer–Lambert in a
+/// homogeneous medium, ratio tracking (an unbiased estimate) in a heterogeneous one.
 #[inline]
 pub(super) fn segment_transmittance(
     scene: &Scene,
     m: u32,
-    o: Vec3A,
-    d: Vec3A,
-    len: f32,
+    (o, d, len): (Vec3A, Vec3A, f32),
+    extinction: Option<u32>,
     rng: &mut Pcg32,
-) -> Vec3 {
+) -> Transmitted {
     let med = &scene.media[m as usize];
+    let chosen = extinction == Some(m);
     match &med.heterogeneous {
-        None => transmittance(med.sigma_t, len),
-        Some(h) => h.transmittance(o, d, len, rng),
+        None => Transmitted {
+            tr: transmittance(med.sigma_t, len),
+            d_log: if chosen {
+                Vec3::splat(-len)
+            } else {
+                Vec3::ZERO
+            },
+        },
+        Some(h) => Transmitted {
+            tr: h.transmittance(o, d, len, rng),
+            d_log: if chosen {
+                -h.depth_estimate(o, d, len)
+            } else {
+                Vec3::ZERO
+            },
+        },
     }
 }
 
 /// [`shadow_transmittance`] by one closest-hit cast per crossing.
 pub(super) fn shadow_transmittance_stepwise(
     scene: &Scene,
-    mut o: Vec3A,
-    d: Vec3A,
-    mut dist: f32,
-    mut medium: Option<u32>,
+    ray: ShadowRay,
+    extinction: Option<u32>,
     rng: &mut Pcg32,
-) -> Vec3 {
-    let mut tr = Vec3::ONE;
+) -> Transmitted {
+    let ShadowRay {
+        mut o,
+        d,
+        mut dist,
+        mut medium,
+    } = ray;
+    let mut tr = Transmitted::CLEAR;
     for _ in 0..MAX_SHADOW_CROSSINGS {
         if dist <= 0.0 {
             return tr;
@@ -105,20 +165,26 @@ pub(super) fn shadow_transmittance_stepwise(
         let hit = scene.intersect(o, d, dist);
         let seg = hit.map_or(dist, |h| h.t);
         if let Some(m) = medium {
-            tr *= segment_transmittance(scene, m, o, d, seg, rng);
+            tr = tr.then(segment_transmittance(
+                scene,
+                m,
+                (o, d, seg),
+                extinction,
+                rng,
+            ));
         }
         let Some(h) = hit else { return tr };
         let info = &scene.shapes[h.shape as usize];
         // Through a null or thin-dielectric surface, by what it lets through; any
         // other surface blocks.
-        tr *= scene.bsdfs[info.bsdf as usize].null_transmission(h.sh_frame.n.dot(d), h.uv);
-        if tr == Vec3::ZERO {
-            return Vec3::ZERO;
+        tr.tr *= scene.bsdfs[info.bsdf as usize].null_transmission(h.sh_frame.n.dot(d), h.uv);
+        if tr.tr == Vec3::ZERO {
+            return Transmitted::BLOCKED;
         }
         medium = medium_after(info, h.n, d, medium);
         let o2 = offset_point(h.p, h.n, d, scene.offset_scale);
         dist -= (o2 - o).length();
         o = o2;
     }
-    Vec3::ZERO
+    Transmitted::BLOCKED
 }

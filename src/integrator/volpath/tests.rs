@@ -193,7 +193,8 @@ fn crossings_in_one_traversal_give_the_exact_transmittance() {
                 }
                 Crossings::Unsupported => panic!("unsupported without thin dielectrics"),
             }
-            let tr = shadow_transmittance(&scene, o, d, dist, medium, &mut Pcg32::new(1, 1));
+            let ray = ShadowRay { o, d, dist, medium };
+            let tr = shadow_transmittance(&scene, ray, None, &mut Pcg32::new(1, 1)).tr;
             let want = exact(o, d, dist, medium, cubes);
             assert!(
                 (tr - want).abs().max_element() <= 1e-4 * want.max_element() + 1e-6,
@@ -230,7 +231,21 @@ fn a_crossing_found_twice_on_a_shared_edge_counts_once() {
             // (the rules do not check): 1.5 units of it, then the cube's 1 unit,
             // then none after leaving it.
             for (medium, depth) in [(None, 1.0f32), (Some(0), 2.5)] {
-                let tr = shadow_transmittance(&scene, o, d, 4.0, medium, &mut Pcg32::new(1, 1));
+                let ray = ShadowRay {
+                    o,
+                    d,
+                    dist: 4.0,
+                    medium,
+                };
+                let through = shadow_transmittance(&scene, ray, Some(0), &mut Pcg32::new(1, 1));
+                let tr = through.tr;
+                // ∂ ln T / ∂σ_t: minus the length in the medium.
+                assert!(
+                    (through.d_log.x + depth).abs() < 1e-4,
+                    "({x}, {y}) dir {dir}: d ln T {} vs {}",
+                    through.d_log.x,
+                    -depth
+                );
                 let want = (-2.0 * depth).exp();
                 assert!(
                     (tr.x - want).abs() < 1e-3 * want,
@@ -462,13 +477,17 @@ fn a_sealed_medium_skips_only_emitter_samples_that_cannot_arrive() {
         assert!(scene.emitters_unreachable[0], "{name}: not found sealed");
         // What the skipped samples would have been: 0 at every point inside.
         scene.emitters_unreachable[0] = false;
-        let m = &scene.media[0];
         let mut rng = Pcg32::new(5, 1);
         for _ in 0..2000 {
             let p = square_to_uniform_sphere(rng.next_2d()) * (0.95 * rng.next_1d().cbrt());
             let d_in = square_to_uniform_sphere(rng.next_2d());
-            let x = medium_emitter_sample(&scene, m, Some(0), p, d_in, 0.0, &mut rng);
-            assert_eq!(x, Vec3::ZERO, "{name}: an emitter sample from {p} arrived");
+            let x = medium_emitter_sample(&scene, 0, p, d_in, 0.0, None, &mut rng);
+            let value = x.map_or(Vec3::ZERO, |x| x.value);
+            assert_eq!(
+                value,
+                Vec3::ZERO,
+                "{name}: an emitter sample from {p} arrived"
+            );
         }
     }
     let open = [
