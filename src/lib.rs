@@ -14,6 +14,7 @@ pub mod bsdf;
 pub mod denoise;
 pub mod emitter;
 pub mod error;
+pub mod fit;
 pub mod geometry;
 pub mod image;
 pub mod integrator;

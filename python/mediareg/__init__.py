@@ -65,7 +65,10 @@ def render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, me
     loaded for (``load_file(..., sensor=N)``; None: that one); ``threads``: render threads (None: all cores); the image is the same at any
     count. ``gradient="albedo"`` also estimates d(radiance_c)/d(albedo_c) of one medium
     (``medium``: its XML id, needed when the scene has several) in the same paths, and
-    returns ``(image, dalbedo)``. ``denoise="oidn"`` returns the image through Intel Open
+    returns ``(image, dalbedo)``; a list of parameter names,
+    ``gradient=["sigma_t", "albedo", "g", "scale"]``, returns ``(image, {name: d/dname})``
+    (signed float32 arrays, per colour channel; sigma_t of a homogeneous medium only,
+    scale of any). ``denoise="oidn"`` returns the image through Intel Open
     Image Denoise, as ``mediareg render --denoise oidn`` writes it (the directly seen
     emission kept out, albedo and normal buffers; the library: ``scripts/fetch_oidn`` or
     ``MEDIAREG_OIDN``). The GIL is released; Ctrl-C stops the render and raises

@@ -7,10 +7,10 @@ use std::time::Duration;
 
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
-use pyo3::types::PyTuple;
+use pyo3::types::{PyDict, PyTuple};
 
 use mediareg::denoise::AuxUse;
-use mediareg::integrator::{self, volpath::Gradient, GradientError, RenderOptions};
+use mediareg::integrator::{self, volpath::Gradient, GradientError, MediumParam, RenderOptions};
 use mediareg::scene::MediumChoiceError;
 
 use crate::images::to_numpy;
@@ -31,10 +31,24 @@ pub fn render<'py>(
     seed: u64,
     sensor: Option<usize>,
     threads: Option<usize>,
-    gradient: Option<&str>,
+    gradient: Option<&Bound<'py, PyAny>>,
     medium: Option<&str>,
     denoise: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    // "albedo" (the image and its derivative, as before), or a list of parameter names
+    // (the image and a dict of derivatives by name).
+    let (names, as_dict) = match gradient {
+        None => (None, false),
+        Some(g) => match g.extract::<String>() {
+            Ok(one) => (Some(one), false),
+            Err(_) => {
+                let list: Vec<String> = g.extract().map_err(|_| {
+                    bad_arg("gradient= takes a parameter name or a list of them (sigma_t, albedo, g, scale)")
+                })?;
+                (Some(list.join(",")), true)
+            }
+        },
+    };
     let data = Arc::clone(&scene.get().inner);
     let built_for = scene.get().sensor;
     if let Some(sensor) = sensor.filter(|&s| s != built_for) {
@@ -47,26 +61,32 @@ pub fn render<'py>(
             "spp must be at least 1 (None: the sampler's sample_count)",
         ));
     }
-    if medium.is_some() && gradient.is_none() {
+    if medium.is_some() && names.is_none() {
         return Err(bad_arg(
-            "medium= names the medium of gradient=\"albedo\"; pass both",
+            "medium= names the medium whose parameters gradient= differentiates; pass both",
         ));
     }
-    let gradient = match gradient {
-        None => Gradient::None,
-        Some("albedo") => integrator::albedo_gradient(&data, medium).map_err(|e| {
+    let params = match &names {
+        None => Vec::new(),
+        Some(list) => MediumParam::parse_list(list)
+            .map_err(|e| bad_arg(format!("gradient={list:?}: {e}")))?,
+    };
+    let (gradient, medium_index) = if params.is_empty() {
+        (Gradient::None, 0)
+    } else {
+        integrator::medium_gradient(&data, medium, &params).map_err(|e| {
             let hint = match &e {
                 GradientError::Medium(MediumChoiceError::Several { .. }) => " (medium=ID)",
                 _ => "",
             };
-            bad_arg(format!("gradient=\"albedo\": {e}{hint}"))
-        })?,
-        Some(g) => {
-            return Err(bad_arg(format!(
-                "gradient=\"{g}\": the derivatives mediareg renders: \"albedo\""
-            )))
-        }
+            bad_arg(format!("gradient={:?}: {e}{hint}", names.as_deref().unwrap_or("")))
+        })?
     };
+    if !as_dict && params.len() > 1 {
+        return Err(bad_arg(
+            "gradient= with several parameters: pass them as a list, gradient=[\"sigma_t\", \"g\"] (a dict of derivatives comes back)",
+        ));
+    }
     match denoise {
         None => {}
         Some("oidn") => {
@@ -90,6 +110,7 @@ pub fn render<'py>(
         ..Default::default()
     };
     let with_denoiser = denoise.is_some();
+    let data_after = Arc::clone(&data);
     let (mut rendered, denoised) = interruptible(py, &cancel, move || {
         let run = || {
             let r = integrator::render(&data, &shot, &opts);
@@ -110,11 +131,22 @@ pub fn render<'py>(
         // this render's own); never hand back a partial image as if complete.
         return Err(crate::Error::new_err("the render was interrupted"));
     }
+    let derivatives = integrator::derivative_images(&data_after, medium_index, &params, &rendered);
     let image = to_numpy(py, rendered.image)?.into_any();
-    match rendered.gradient {
-        Some(g) => Ok(PyTuple::new(py, [image, to_numpy(py, g)?.into_any()])?.into_any()),
-        None => Ok(image),
+    if params.is_empty() {
+        return Ok(image);
     }
+    if !as_dict {
+        let (_, g) = derivatives.into_iter().next().expect("one parameter");
+        let g = g.expect("the derivative asked for is rendered");
+        return Ok(PyTuple::new(py, [image, to_numpy(py, g)?.into_any()])?.into_any());
+    }
+    let dict = PyDict::new(py);
+    for (param, img) in derivatives {
+        let img = img.expect("each derivative asked for is rendered");
+        dict.set_item(param.name(), to_numpy(py, img)?)?;
+    }
+    Ok(PyTuple::new(py, [image, dict.into_any()])?.into_any())
 }
 
 /// A pool of `threads` render threads (None: rayon's global pool, all cores).

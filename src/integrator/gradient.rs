@@ -151,7 +151,9 @@ pub fn derivative_images(
     params: &[MediumParam],
     rendered: &Rendered,
 ) -> Vec<(MediumParam, Option<Image>)> {
-    let m = &scene.media[mi as usize];
+    let Some(m) = scene.media.get(mi as usize) else {
+        return Vec::new();
+    };
     let scaled = |img: &Option<Image>, f: [f32; 3]| {
         img.as_ref().map(|img| Image {
             width: img.width,

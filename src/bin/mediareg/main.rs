@@ -2,6 +2,7 @@
 //! command (render, regularize, merge, and the paper's table, figures and report).
 
 mod common;
+mod fit;
 mod interrupt;
 mod merge;
 mod paper;
@@ -51,6 +52,9 @@ enum Command {
     /// with their numbers (figN.json), from reduced-size sweeps against the references
     /// in reference/figures/ (Fig. 7: the full-size cube).
     Figures(paper::FiguresArgs),
+    /// Fit a medium's parameters (sigma_t, albedo, g, scale) to target images; writes
+    /// OUT.json with the values, their 95% intervals and the loss per iteration.
+    Fit(fit::FitArgs),
     /// Merge renders of one shot made in chunks (distinct seeds) into OUT.exr, weighted
     /// by each chunk's spp, and OUT_var.exr, the variance of that mean.
     Merge(merge::MergeArgs),
@@ -110,5 +114,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Report(args) => paper::report(args),
         Command::Figures(args) => paper::figures(args),
         Command::Merge(args) => merge::run(args),
+        Command::Fit(args) => fit::run(args),
     }
 }

@@ -1,0 +1,359 @@
+//! `mediareg fit`: a medium's parameters from images. Each iteration renders the
+//! image and its derivatives in the parameters in the same paths
+//! (`integrator::volpath::MediumParams`), one render per target, and takes a
+//! Levenberg–Marquardt step on the squared error:
+//!
+//!   (JᵀJ + λ diag JᵀJ) δ = −Jᵀ r,
+//!
+//! r the residuals (render − target, every pixel and channel of every target), J their
+//! derivatives in the unknowns' step coordinates (`unknowns`). With a handful of
+//! unknowns and their derivative images at hand, Gauss–Newton needs few iterations
+//! where a first-order method (Adam, as in Mitsuba 3's examples) needs hundreds, and
+//! JᵀJ is also what says how well the images determine each unknown.
+//!
+//! The renders are noisy, and a residual and its derivative from the same paths are
+//! correlated: Jᵀr from one render is biased (it holds the gradient of the render's
+//! variance). Each iteration therefore renders twice at independent seeds and takes
+//! Jᵀr = (J₁ᵀr₂ + J₂ᵀr₁)/2, whose zero is the least-squares optimum of the expected
+//! image; the loss reported is r₁·r₂ (unbiased for the squared error of the expected
+//! image, without the noise floor). No step is rejected on a noisy loss: each is
+//! bounded (a trust region per unknown), and the estimate is the mean of the iterates
+//! over the last half of the iterations (Polyak averaging: the iterates jitter around
+//! the optimum by the renders' noise).
+//!
+//! Confidence intervals: the covariance of the least-squares estimate,
+//! s² (JᵀJ)⁻¹ with s² the residual variance, from two renders at independent seeds
+//! whose cross product J₁ᵀJ₂ estimates JᵀJ without the bias that render noise adds to
+//! J₁ᵀJ₁ (which would make an undetermined direction look determined). A direction
+//! the images do not fix has an interval that says so (wide, or unbounded).
+
+mod unknowns;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use nalgebra::{DMatrix, DVector};
+
+pub use unknowns::Unknown;
+
+use crate::image::Image;
+use crate::integrator::render::{render, RenderOptions, Rendered};
+use crate::integrator::{derivative_images, medium_gradient, GradientError, MediumParam};
+use crate::scene::Scene;
+
+/// One image to fit, and the scene (camera, lighting) that renders it.
+pub struct FitTarget {
+    pub scene: Scene,
+    pub image: Image,
+}
+
+/// How to fit.
+#[derive(Clone, Debug)]
+pub struct FitSettings {
+    /// The medium's XML id (None: the scenes' only medium).
+    pub medium: Option<String>,
+    pub params: Vec<MediumParam>,
+    pub spp: u32,
+    pub iterations: u32,
+    pub seed: u64,
+    /// Set to stop after the iteration under way (the best so far is returned).
+    pub cancel: Option<Arc<AtomicBool>>,
+}
+
+/// Where an iteration left the fit (for a progress line).
+pub struct Progress<'a> {
+    pub iteration: u32,
+    pub loss: f64,
+    pub unknowns: &'a [Unknown],
+    pub values: &'a [f32],
+}
+
+/// What a fit found.
+#[derive(Clone, Debug)]
+pub struct FitResult {
+    pub unknowns: Vec<Unknown>,
+    /// The best iterate's values.
+    pub values: Vec<f32>,
+    /// 95% intervals per unknown (±∞ where the images do not determine it).
+    pub ci: Vec<[f32; 2]>,
+    /// The loss (mean squared residual) of each iteration's render.
+    pub loss: Vec<f64>,
+    pub iterations: u32,
+    pub seconds: f64,
+}
+
+/// Why a fit cannot run.
+#[derive(Debug)]
+pub enum FitError {
+    Gradient(GradientError),
+    /// A target's size differs from its scene's film, or no target was given.
+    Target(String),
+}
+
+impl std::fmt::Display for FitError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FitError::Gradient(e) => write!(f, "{e}"),
+            FitError::Target(why) => write!(f, "{why}"),
+        }
+    }
+}
+
+impl std::error::Error for FitError {}
+
+/// Every target rendered once at the current values: the residuals and their
+/// derivative columns in the unknowns (pixel-major, channel-minor), all targets end
+/// to end.
+struct Evaluation {
+    residuals: Vec<f64>,
+    columns: Vec<Vec<f64>>,
+}
+
+/// Σ a·b.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(a, b)| a * b).sum()
+}
+
+/// (Aᵀ B + Bᵀ A) / 2 over two evaluations' columns.
+fn cross(a: &Evaluation, b: &Evaluation) -> DMatrix<f64> {
+    let k = a.columns.len();
+    DMatrix::from_fn(k, k, |i, j| {
+        0.5 * (dot(&a.columns[i], &b.columns[j]) + dot(&a.columns[j], &b.columns[i]))
+    })
+}
+
+/// Fits `settings.params` of one medium to `targets`, starting from the first
+/// target's scene values (each target's scene gets the same values as the fit goes);
+/// `progress` sees each iteration.
+pub fn fit(
+    targets: &mut [FitTarget],
+    settings: &FitSettings,
+    mut progress: impl FnMut(&Progress),
+) -> Result<FitResult, FitError> {
+    let start = Instant::now();
+    let mi = check(targets, settings)?;
+    let unknowns = Unknown::of(&targets[0].scene.media[mi as usize], &settings.params);
+    let m0 = &targets[0].scene.media[mi as usize];
+    let mut x: Vec<f64> = unknowns.iter().map(|u| u.to_x(u.value(m0))).collect();
+    let cancelled = || {
+        settings
+            .cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+    };
+    let mut losses = Vec::new();
+    let mut iterates = Vec::new();
+    for it in 0..settings.iterations {
+        set_values(targets, mi, &unknowns, &x);
+        let seed = settings.seed.wrapping_add(2 * it as u64);
+        let e1 = evaluate(targets, settings, mi, &unknowns, seed);
+        let e2 = evaluate(targets, settings, mi, &unknowns, seed + 1);
+        let loss = dot(&e1.residuals, &e2.residuals) / e1.residuals.len().max(1) as f64;
+        losses.push(loss);
+        iterates.push(x.clone());
+        let values: Vec<f32> = unknowns.iter().zip(&x).map(|(u, &x)| u.from_x(x)).collect();
+        progress(&Progress {
+            iteration: it + 1,
+            loss,
+            unknowns: &unknowns,
+            values: &values,
+        });
+        if cancelled() {
+            break;
+        }
+        x = step(&e1, &e2, &unknowns, &x);
+    }
+    // The mean of the last half of the iterates.
+    let tail = &iterates[iterates.len() / 2..];
+    let best_x: Vec<f64> = (0..unknowns.len())
+        .map(|i| tail.iter().map(|x| x[i]).sum::<f64>() / tail.len().max(1) as f64)
+        .collect();
+    set_values(targets, mi, &unknowns, &best_x);
+    let values: Vec<f32> = unknowns
+        .iter()
+        .zip(&best_x)
+        .map(|(u, &x)| u.from_x(x))
+        .collect();
+    let ci = intervals(targets, settings, mi, &unknowns, &best_x);
+    Ok(FitResult {
+        unknowns,
+        values,
+        ci,
+        iterations: losses.len() as u32,
+        loss: losses,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The medium to fit, after checking that every target can be fitted.
+fn check(targets: &[FitTarget], settings: &FitSettings) -> Result<u32, FitError> {
+    let first = targets
+        .first()
+        .ok_or_else(|| FitError::Target("no target image".into()))?;
+    let (_, mi) = medium_gradient(&first.scene, settings.medium.as_deref(), &settings.params)
+        .map_err(FitError::Gradient)?;
+    for (i, t) in targets.iter().enumerate() {
+        let film = &t.scene.shot.film;
+        if (t.image.width, t.image.height) != film.crop_size {
+            return Err(FitError::Target(format!(
+                "target {}: {}×{} pixels, its scene's film {}×{}",
+                i + 1,
+                t.image.width,
+                t.image.height,
+                film.crop_size.0,
+                film.crop_size.1
+            )));
+        }
+        if t.scene.media.get(mi as usize).is_some_and(|m| m.heterogeneous.is_some()) {
+            return Err(FitError::Gradient(GradientError::Unsupported(
+                "fit: heterogeneous media are not fitted yet (render --gradient scale gives their derivative)".into(),
+            )));
+        }
+    }
+    Ok(mi)
+}
+
+/// Puts the values at step coordinates `x` into medium `mi` of every target's scene.
+fn set_values(targets: &mut [FitTarget], mi: u32, unknowns: &[Unknown], x: &[f64]) {
+    for t in targets.iter_mut() {
+        let m = &mut t.scene.media[mi as usize];
+        for (u, &x) in unknowns.iter().zip(x) {
+            u.set(m, u.from_x(x));
+        }
+    }
+}
+
+/// The damped Gauss–Newton step from `x` with the decorrelated gradient
+/// (J₁ᵀr₂ + J₂ᵀr₁)/2 and the curvature (J₁ᵀJ₁ + J₂ᵀJ₂)/2, bounded per unknown. The
+/// curvature is positive semi-definite, for a stable solve; the unbiased cross product
+/// J₁ᵀJ₂ was tried and its noisy small eigenvalue threw the thin cube's fit far along
+/// its valley. Render noise on J₁ᵀJ₁'s diagonal shortens steps along a poorly
+/// determined direction instead: the fit goes there slowly, but goes.
+fn step(e1: &Evaluation, e2: &Evaluation, unknowns: &[Unknown], x: &[f64]) -> Vec<f64> {
+    const LAMBDA: f64 = 1e-3;
+    let k = unknowns.len();
+    let jtr = DVector::from_fn(k, |i, _| {
+        0.5 * (dot(&e1.columns[i], &e2.residuals) + dot(&e2.columns[i], &e1.residuals))
+    });
+    let mut a = DMatrix::from_fn(k, k, |i, j| {
+        0.5 * (dot(&e1.columns[i], &e1.columns[j]) + dot(&e2.columns[i], &e2.columns[j]))
+    });
+    for i in 0..k {
+        a[(i, i)] += LAMBDA * a[(i, i)].max(1e-30);
+    }
+    let delta = a
+        .clone()
+        .cholesky()
+        .map(|c| c.solve(&(-&jtr)))
+        .or_else(|| a.pseudo_inverse(1e-12).ok().map(|p| p * (-&jtr)))
+        .unwrap_or_else(|| DVector::zeros(k));
+    // One factor for the whole step keeps its direction.
+    let shrink = unknowns
+        .iter()
+        .enumerate()
+        .map(|(i, u)| (u.max_step() / delta[i].abs()).min(1.0))
+        .fold(1.0f64, f64::min);
+    x.iter()
+        .zip(delta.iter())
+        .zip(unknowns)
+        .map(|((x, d), u)| u.clamp_x(x + shrink * d))
+        .collect()
+}
+
+/// Renders every target at the values now in its scene, with the derivatives.
+fn evaluate(
+    targets: &[FitTarget],
+    settings: &FitSettings,
+    mi: u32,
+    unknowns: &[Unknown],
+    seed: u64,
+) -> Evaluation {
+    let mut eval = Evaluation {
+        residuals: Vec::new(),
+        columns: vec![Vec::new(); unknowns.len()],
+    };
+    for t in targets {
+        let (rendered, derivs) = render_with_derivatives(t, settings, mi, seed);
+        let m = &t.scene.media[mi as usize];
+        let chain: Vec<f64> = unknowns.iter().map(|u| u.dv_dx(u.value(m))).collect();
+        for (p, (mine, want)) in rendered.image.pixels.iter().zip(&t.image.pixels).enumerate() {
+            for c in 0..3 {
+                eval.residuals.push((mine[c] - want[c]) as f64);
+                for (j, u) in unknowns.iter().enumerate() {
+                    let d = derivs[&u.param].pixels[p];
+                    eval.columns[j].push(u.derivative_in(d, c) * chain[j]);
+                }
+            }
+        }
+    }
+    eval
+}
+
+/// One render of target `t` at `seed` with its derivative images by parameter.
+fn render_with_derivatives(
+    t: &FitTarget,
+    settings: &FitSettings,
+    mi: u32,
+    seed: u64,
+) -> (Rendered, std::collections::HashMap<MediumParam, Image>) {
+    let (gradient, _) = medium_gradient(&t.scene, settings.medium.as_deref(), &settings.params)
+        .expect("checked before the fit");
+    let shot = t.scene.shot.with(settings.spp, seed);
+    let opts = RenderOptions {
+        gradient,
+        ..Default::default()
+    };
+    let rendered = render(&t.scene, &shot, &opts);
+    let derivs = derivative_images(&t.scene, mi, &settings.params, &rendered)
+        .into_iter()
+        .filter_map(|(p, img)| img.map(|img| (p, img)))
+        .collect();
+    (rendered, derivs)
+}
+
+/// 95% intervals at `x` from two renders at fresh seeds: s² (J₁ᵀJ₂)⁻¹ (the module
+/// comment), mapped through each unknown's coordinate.
+fn intervals(
+    targets: &[FitTarget],
+    settings: &FitSettings,
+    mi: u32,
+    unknowns: &[Unknown],
+    x: &[f64],
+) -> Vec<[f32; 2]> {
+    let k = unknowns.len();
+    let seed = settings.seed.wrapping_add(1 << 32);
+    let e1 = evaluate(targets, settings, mi, unknowns, seed);
+    let e2 = evaluate(targets, settings, mi, unknowns, seed + 1);
+    let cross = cross(&e1, &e2);
+    // The residual variance of one render (the noise and what the model misses).
+    let n = e1.residuals.len();
+    let s2 = 0.5 * (dot(&e1.residuals, &e1.residuals) + dot(&e2.residuals, &e2.residuals))
+        / (n.saturating_sub(k)).max(1) as f64;
+    let eig = cross.clone().symmetric_eigen();
+    // Directions whose curvature is not clearly positive are not determined.
+    let top = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
+    let mut cov = DMatrix::<f64>::zeros(k, k);
+    let mut undetermined = vec![false; k];
+    for (n, &l) in eig.eigenvalues.iter().enumerate() {
+        let v = eig.eigenvectors.column(n);
+        if l <= 1e-9 * top.max(1e-300) {
+            for i in 0..k {
+                undetermined[i] |= v[i].abs() > 1e-3;
+            }
+            continue;
+        }
+        cov += (v * v.transpose()) * (s2 / l);
+    }
+    unknowns
+        .iter()
+        .enumerate()
+        .map(|(i, u)| {
+            if undetermined[i] {
+                return [f32::NEG_INFINITY, f32::INFINITY];
+            }
+            let half = 1.96 * cov[(i, i)].max(0.0).sqrt();
+            [u.from_x(x[i] - half), u.from_x(x[i] + half)]
+        })
+        .collect()
+}
