@@ -8,6 +8,14 @@
 //!
 //! Only what the lane kernels use is here; each operation is one instruction (or two
 //! on the narrow path) and rounds as its scalar counterpart does.
+//!
+//! Two widths, on purpose. [`Lanes`] is the widest register the CPU has: the triangle
+//! tests (`geometry::accel::lanes`) test as many triangles at once as fit, and gain
+//! from 16. The path packet (`integrator::packet::lanes::L`) is `wide`'s `f32x8` at
+//! every width: eight paths is the packet's fixed size (its masks, per-path random
+//! streams and kernels are written for it), and it implements [`Float`], with the
+//! transcendental functions (`exp`, `ln`, `sin_cos`) the physics kernels need, which
+//! `Lanes` does not have. Both are vectors over [`Vector3`].
 
 mod float;
 

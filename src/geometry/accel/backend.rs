@@ -16,7 +16,7 @@ pub enum Backend {
     /// Embree 3, when it loads (else obvhs). It is used where the BVH would hold
     /// triangles only, at least [`EMBREE_MIN_TRIANGLES`] of them: fewer stay obvhs's
     /// (or are tested one by one), and a BVH that holds analytic shapes too (more than
-    /// [`super::SEPARATE_ANALYTIC`]) stays obvhs's.
+    /// [`super::build::SEPARATE_ANALYTIC`]) stays obvhs's.
     Embree,
 }
 

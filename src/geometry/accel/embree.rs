@@ -1,7 +1,8 @@
 //! The accelerator's triangles in Embree 3 (the ray caster Mitsuba 3 uses), when the
 //! library loads ([`super::embree_api`]): its closest hit, occlusion test and every-hit
-//! search answer for the BVH of [`super::Accel`] when that holds triangles only. Analytic shapes and
-//! Mitsuba `cube`s tested as boxes stay beside it, as with obvhs.
+//! search answer for [`super::Accel`] where its BVH would hold triangles only (its
+//! `Caster::Embree`). Analytic shapes and Mitsuba `cube`s tested as boxes stay beside
+//! it, as with obvhs.
 //!
 //! One Embree triangle geometry per mesh, built as Mitsuba 3 builds its scene
 //! (`RTC_BUILD_QUALITY_HIGH`, no robust flag). A committed `RTCScene` may be queried
@@ -16,7 +17,8 @@ use std::ptr;
 use glam::Vec3A;
 
 use super::embree_api::{self as sys, Api, IntersectContext, INVALID_ID};
-use super::Hit;
+use super::hit::{Crossing, Crossings, Hit, MAX_CROSSINGS};
+use crate::geometry::shape::Geometry;
 
 /// An Embree device and the committed scene of the accelerator's triangles.
 pub(crate) struct EmbreeScene {
@@ -310,6 +312,77 @@ impl EmbreeScene {
         // SAFETY: a committed scene; the context outlives the call.
         unsafe { (self.api.occluded1)(self.scene, &mut ctx.base, &mut r) };
         r.tfar < 0.0
+    }
+}
+
+/// As the scene's ray caster ([`super::Accel`]'s searches, past the shapes beside it).
+impl EmbreeScene {
+    /// The closest hit, 0 < t < tmax, with a shape `keep` accepts; `filtered` false
+    /// says `keep` accepts every shape (Embree is then asked without a filter).
+    #[inline(always)]
+    pub(crate) fn intersect_where(
+        &self,
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+        keep: impl Fn(u32) -> bool,
+        filtered: bool,
+    ) -> Option<Hit> {
+        if !filtered {
+            return self.intersect(o, d, tmax);
+        }
+        if self.filters {
+            return self.intersect_filtered(o, d, tmax, &mut |c| keep(c.shape));
+        }
+        // Built without filters (not expected to be asked): past every hit `keep`
+        // refuses, one plain cast after another.
+        let mut tnear = 0.0;
+        loop {
+            match self.intersect_from(o, d, tnear, tmax) {
+                Some(h) if !keep(h.shape) && h.t < tmax => tnear = h.t.next_up(),
+                Some(h) if keep(h.shape) => break Some(h),
+                _ => break None,
+            }
+        }
+    }
+
+    /// Every crossing, 0 < t < tmax, to `record` (see [`super::Accel::crossings`])
+    /// until it answers; unsupported where the scene was built without filters (not
+    /// expected to be asked: the caller then casts once per crossing).
+    #[inline(always)]
+    pub(crate) fn crossings(
+        &self,
+        shapes: &[Geometry],
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+        record: &mut impl FnMut(Crossing) -> Option<Crossings>,
+    ) -> Crossings {
+        if !self.filters {
+            return Crossings::Unsupported;
+        }
+        // Embree may hand over a triangle twice (see `each_hit`): each counts once.
+        let mut seen = arrayvec::ArrayVec::<u32, MAX_CROSSINGS>::new();
+        let mut answer = None;
+        self.each_hit(o, d, tmax, &mut |c| {
+            if seen.contains(&c.leaf) {
+                return false;
+            }
+            // Embree's normal is the triangle's (p1 − p0) × (p2 − p0), as the hit has
+            // it: no load of the accelerator's copy (a cache miss).
+            let flip = matches!(&shapes[c.shape as usize], Geometry::Mesh(m) if m.flip_normals);
+            answer = record(Crossing {
+                t: c.t,
+                shape: c.shape,
+                along_normal: (d.dot(c.ng) > 0.0) != flip,
+            });
+            // A crossing recorded (and so seen) only where the search goes on.
+            if answer.is_none() {
+                seen.push(c.leaf);
+            }
+            answer.is_some()
+        });
+        answer.unwrap_or(Crossings::Found)
     }
 }
 

@@ -294,8 +294,8 @@ fn without_filters_the_filtered_searches_fall_back() {
     let refs: Vec<&Geometry> = g.iter().collect();
     let filtered = Accel::build_with(&refs, Backend::Embree);
     let plain = Accel::build_filtered(&refs, Backend::Embree, false);
-    assert!(filtered.embree.as_ref().is_some_and(|e| e.filters));
-    assert!(plain.embree.as_ref().is_some_and(|e| !e.filters));
+    assert!(matches!(&filtered.caster, Caster::Embree(e) if e.filters));
+    assert!(matches!(&plain.caster, Caster::Embree(e) if !e.filters));
     let pass = vec![ShadowPass::Passes; g.len()];
     let mut list = CrossingList::new();
     let mut past_refused = 0;

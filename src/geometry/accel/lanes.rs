@@ -10,8 +10,11 @@
 
 use glam::Vec3A;
 
+use super::hit::{Crossing, Crossings, Hit};
+use super::primitive::Primitives;
 use super::triangle::LeafTriangle;
-use crate::simd::{Lanes, Mask, WIDTH};
+use crate::geometry::shape::Geometry;
+use crate::simd::{Lanes, Mask, Vector3, WIDTH};
 
 /// Up to this many triangles (eight registers' worth) a scene's triangles are tested
 /// in lanes rather than by traversing a BVH; beyond about that, testing them all costs
@@ -24,10 +27,15 @@ pub(super) const MAX_TRIANGLES: usize = 8 * WIDTH;
 /// triangle (e1 = e2 = 0), which no ray hits.
 #[derive(Clone, Copy, Debug)]
 struct Block {
-    p0: [Lanes; 3],
-    e1: [Lanes; 3],
-    e2: [Lanes; 3],
+    p0: V3,
+    e1: V3,
+    e2: V3,
 }
+
+/// A vector per lane: `simd`'s `Vector3` over its widest lanes. `Lanes` implements no
+/// [`crate::simd::Float`] (see `simd` on the two widths), so `Vector3`'s methods do
+/// not apply to it: the two products it needs are below.
+type V3 = Vector3<Lanes>;
 
 /// The triangles of a scene in blocks, in the order given (triangle `i` is lane
 /// `i % WIDTH` of block `i / WIDTH`).
@@ -50,22 +58,27 @@ pub(super) struct LaneHit {
 /// `Vec3A::cross` does where FMA is compiled in: lanes and scalar tests then agree
 /// to the bit.
 #[inline(always)]
-fn cross(a: &[Lanes; 3], b: &[Lanes; 3]) -> [Lanes; 3] {
-    [
-        a[2].mul_neg_add(b[1], a[1] * b[2]),
-        a[0].mul_neg_add(b[2], a[2] * b[0]),
-        a[1].mul_neg_add(b[0], a[0] * b[1]),
-    ]
+fn cross(a: &V3, b: &V3) -> V3 {
+    V3 {
+        x: a.z.mul_neg_add(b.y, a.y * b.z),
+        y: a.x.mul_neg_add(b.z, a.z * b.x),
+        z: a.y.mul_neg_add(b.x, a.x * b.y),
+    }
+}
+
+/// (x₀y₀ + x₁y₁) + x₂y₂, in glam's order (as `Vector3::dot`).
+#[inline(always)]
+fn dot(a: &V3, b: &V3) -> Lanes {
+    a.x * b.x + a.y * b.y + a.z * b.z
 }
 
 #[inline(always)]
-fn dot(a: &[Lanes; 3], b: &[Lanes; 3]) -> Lanes {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-#[inline(always)]
-fn splat(v: Vec3A) -> [Lanes; 3] {
-    [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)]
+fn splat(v: Vec3A) -> V3 {
+    V3 {
+        x: Lanes::splat(v.x),
+        y: Lanes::splat(v.y),
+        z: Lanes::splat(v.z),
+    }
 }
 
 impl TriangleLanes {
@@ -83,11 +96,15 @@ impl TriangleLanes {
         let blocks = lanes
             .iter()
             .map(|b| {
-                let r = |k: usize| Lanes::load(&b[k]);
+                let r = |k: usize| V3 {
+                    x: Lanes::load(&b[k]),
+                    y: Lanes::load(&b[k + 1]),
+                    z: Lanes::load(&b[k + 2]),
+                };
                 Block {
-                    p0: [r(0), r(1), r(2)],
-                    e1: [r(3), r(4), r(5)],
-                    e2: [r(6), r(7), r(8)],
+                    p0: r(0),
+                    e1: r(3),
+                    e2: r(6),
                 }
             })
             .collect();
@@ -121,7 +138,11 @@ impl TriangleLanes {
             let pv = cross(&d, &b.e2);
             let det = dot(&b.e1, &pv);
             let abs_det = det.abs();
-            let tv = [o[0] - b.p0[0], o[1] - b.p0[1], o[2] - b.p0[2]];
+            let tv = V3 {
+                x: o.x - b.p0.x,
+                y: o.y - b.p0.y,
+                z: o.z - b.p0.z,
+            };
             let u = dot(&tv, &pv).times_sign_of(det);
             let qv = cross(&tv, &b.e1);
             let v = dot(&d, &qv).times_sign_of(det);
@@ -207,6 +228,43 @@ impl TriangleLanes {
             }
             Some(tmax)
         });
+    }
+}
+
+/// As the scene's ray caster: triangle `i` is the caster's primitive `i`.
+impl TriangleLanes {
+    /// The closest hit, 0 < t < tmax, among the triangles of a shape `keep` accepts.
+    #[inline(always)]
+    pub fn intersect_where(
+        &self,
+        prims: &Primitives,
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+        keep: impl Fn(u32) -> bool,
+    ) -> Option<Hit> {
+        let found = self.closest(o, d, tmax, |i| keep(prims.refs[i].shape));
+        found.map(|h| prims.hit(h.index, h.t, h.u, h.v))
+    }
+
+    /// Every crossing, 0 < t < tmax, to `record` (see [`super::Accel::crossings`])
+    /// until it answers.
+    #[inline(always)]
+    pub fn crossings(
+        &self,
+        prims: &Primitives,
+        shapes: &[Geometry],
+        o: Vec3A,
+        d: Vec3A,
+        tmax: f32,
+        record: &mut impl FnMut(Crossing) -> Option<Crossings>,
+    ) -> Crossings {
+        let mut answer = None;
+        self.each_hit(o, d, tmax, |id, t| {
+            answer = record(prims.triangle_crossing(shapes, prims.refs[id].shape, id, t, d));
+            answer.is_none()
+        });
+        answer.unwrap_or(Crossings::Found)
     }
 }
 

@@ -1,5 +1,9 @@
 //! The accelerator against brute force, its node test against obvhs', and its speed.
 
+use super::build::SEPARATE_ANALYTIC;
+use super::node::{node_hits, traversal_ray};
+use super::primitive::ANALYTIC;
+use super::triangle::LeafTriangle;
 use super::*;
 use crate::geometry::mesh::{cube, TriangleMesh};
 use crate::geometry::shape::{Planar, Sphere};
@@ -84,7 +88,8 @@ fn closest_hit_and_occlusion_match_brute_force() {
         assert_eq!(accel.cuboids.len(), if as_boxes { 2 } else { 0 });
         // Without the cubes' triangles, 3 spheres and a rectangle are few enough to
         // be tested one by one (in the primitive list: "mixed", with no traversal).
-        assert_eq!(accel.mixed, spheres > SEPARATE_ANALYTIC || as_boxes);
+        let mixed = accel.prims.refs.iter().any(|p| p.index == ANALYTIC);
+        assert_eq!(mixed, spheres > SEPARATE_ANALYTIC || as_boxes);
         assert_eq!(accel.traverses_bvh(), !as_boxes);
         let mut rng = Pcg32::new(5, spheres as u64);
         let mut hits = 0;
@@ -146,7 +151,11 @@ fn node_test_matches_obvhs() {
         .expect("a triangle soup");
     let g = [Geometry::Mesh(mesh)];
     let accel = Accel::build_with(&[&g[0]], Backend::Obvhs);
-    assert!(accel.bvh.nodes.len() > 1000);
+    let Caster::Obvhs(bvh) = &accel.caster else {
+        panic!("{}", accel.describe())
+    };
+    let bvh = &bvh.cwbvh;
+    assert!(bvh.nodes.len() > 1000);
     let (mut met, mut tests) = (0u64, 0u64);
     for i in 0..300 {
         let o = point(&mut rng) * if i % 3 == 0 { 2.0 } else { 1.0 };
@@ -157,8 +166,8 @@ fn node_test_matches_obvhs() {
         };
         let tmax = if i % 2 == 0 { 0.5 } else { f32::INFINITY };
         let (ray, _) = traversal_ray(o, d, tmax);
-        let oct_inv4 = accel.bvh.new_traversal(ray.direction).oct_inv4;
-        for node in &accel.bvh.nodes {
+        let oct_inv4 = bvh.new_traversal(ray.direction).oct_inv4;
+        for node in &bvh.nodes {
             let want = node.intersect_ray(&ray, oct_inv4);
             assert_eq!(node_hits(node, &ray, oct_inv4), want, "ray {o} {d} {tmax}");
             met += (want != 0) as u64;
@@ -247,9 +256,13 @@ fn lanes_answer_what_the_bvh_does() {
     ];
     let refs: Vec<&Geometry> = g.iter().collect();
     let in_lanes = Accel::build_with(&refs, Backend::Obvhs);
-    assert!(in_lanes.lanes.is_some(), "{}", in_lanes.describe());
-    let mut bvh = Accel::build_with(&refs, Backend::Obvhs);
-    bvh.lanes = None;
+    assert!(
+        matches!(in_lanes.caster, Caster::Lanes(_)),
+        "{}",
+        in_lanes.describe()
+    );
+    let bvh = Accel::build_caster(&refs, Backend::Obvhs, true, false);
+    assert!(matches!(bvh.caster, Caster::Obvhs(_)), "{}", bvh.describe());
     let pass = [ShadowPass::Passes, ShadowPass::Passes, ShadowPass::Blocks];
     let (mut hits, mut found, mut ties) = (0, 0, 0);
     let (mut la, mut lb) = (CrossingList::new(), CrossingList::new());

@@ -1,0 +1,211 @@
+//! The accelerator's build: which shapes are tested beside the ray caster (few analytic
+//! shapes, few Mitsuba `cube`s as boxes), the caster's primitives in its order, and the
+//! caster itself, chosen once here ([`super::Caster`]).
+
+use glam::Vec3A;
+use obvhs::aabb::Aabb;
+
+use super::backend::{Backend, EMBREE_MIN_TRIANGLES};
+use super::brute_force::BRUTE_FORCE_PRIMS;
+use super::bvh::{self, Bvh};
+use super::embree::{EmbreeScene, MeshRef};
+use super::embree_api;
+use super::lanes::{self, TriangleLanes};
+use super::primitive::{PrimRef, Primitives, ANALYTIC};
+use super::triangle::LeafTriangle;
+use super::{Accel, Caster};
+use crate::geometry::cuboid::Cuboid;
+use crate::geometry::mesh::TriangleMesh;
+use crate::geometry::shape::Geometry;
+use crate::geometry::Bounds;
+
+/// Up to this many analytic shapes are tested one by one beside the BVH, which then
+/// holds triangles only: its leaf test reads one contiguous triangle, without first
+/// looking up what kind of primitive it is (a cache miss per candidate on a large mesh).
+/// More of them go into the BVH with the triangles.
+pub(super) const SEPARATE_ANALYTIC: usize = 16;
+
+impl Accel {
+    /// The accelerator over `shapes` with `backend`; `filtered` as for [`Accel::build`].
+    pub(super) fn build_filtered(shapes: &[&Geometry], backend: Backend, filtered: bool) -> Accel {
+        Self::build_caster(shapes, backend, filtered, true)
+    }
+
+    /// [`Accel::build_filtered`]; `lanes_allowed` false keeps a BVH where few triangles
+    /// would be tested in lanes (for tests that compare the two).
+    pub(super) fn build_caster(
+        shapes: &[&Geometry],
+        backend: Backend,
+        filtered: bool,
+        lanes_allowed: bool,
+    ) -> Accel {
+        let n_analytic = shapes
+            .iter()
+            .filter(|g| !matches!(g, Geometry::Mesh(_)))
+            .count();
+        // A slab test beats the BVH over a cube's 12 triangles, but every ray pays it
+        // for every cube: many cubes stay in the BVH.
+        let mut cuboids: Vec<Cuboid> = shapes
+            .iter()
+            .enumerate()
+            .filter_map(|(si, g)| match g {
+                Geometry::Mesh(m) => Cuboid::new(si as u32, m, m.cube_to_world.as_ref()?),
+                _ => None,
+            })
+            .collect();
+        if cuboids.len() + n_analytic > SEPARATE_ANALYTIC {
+            cuboids.clear();
+        }
+        let is_cuboid = |si: usize| cuboids.iter().any(|c| c.shape == si as u32);
+        let n_triangles: usize = shapes
+            .iter()
+            .enumerate()
+            .map(|(si, g)| match g {
+                Geometry::Mesh(m) if !is_cuboid(si) => m.triangles.len(),
+                _ => 0,
+            })
+            .sum();
+        // Few primitives in all are tested one by one (see BRUTE_FORCE_PRIMS), in the
+        // caster's primitive list; else few analytic shapes are kept out of the BVH.
+        let mixed = n_analytic + n_triangles <= BRUTE_FORCE_PRIMS || n_analytic > SEPARATE_ANALYTIC;
+        let mut analytic = Vec::new();
+        let mut prims = Vec::new();
+        let mut aabbs = Vec::new();
+        let mut bounds = Bounds::EMPTY;
+        for (si, g) in shapes.iter().enumerate() {
+            match g {
+                Geometry::Mesh(_) if is_cuboid(si) => bounds = bounds.union(&g.bounds()),
+                Geometry::Mesh(m) => {
+                    for ti in 0..m.triangles.len() as u32 {
+                        let mut b = Bounds::EMPTY;
+                        for p in m.vertices(ti) {
+                            b.expand(p);
+                        }
+                        prims.push(PrimRef {
+                            shape: si as u32,
+                            index: ti,
+                        });
+                        aabbs.push(Aabb {
+                            min: b.min,
+                            max: b.max,
+                        });
+                        bounds = bounds.union(&b);
+                    }
+                }
+                Geometry::Sphere(_) | Geometry::Planar(_) => {
+                    let b = g.bounds();
+                    bounds = bounds.union(&b);
+                    if !mixed {
+                        analytic.push(si as u32);
+                        continue;
+                    }
+                    prims.push(PrimRef {
+                        shape: si as u32,
+                        index: ANALYTIC,
+                    });
+                    aabbs.push(Aabb {
+                        min: b.min,
+                        max: b.max,
+                    });
+                }
+            }
+        }
+        // Embree builds its own BVH (from the meshes, below): prims stay in input order.
+        // (Above the threshold, the triangles are never tested one by one.)
+        const _: () = assert!(EMBREE_MIN_TRIANGLES > BRUTE_FORCE_PRIMS);
+        let embree_wanted =
+            backend == Backend::Embree && !mixed && prims.len() >= EMBREE_MIN_TRIANGLES;
+        let build = || build_embree(shapes, &prims, filtered);
+        let (embree, warning) = match embree_wanted.then(build) {
+            Some(Ok(e)) => (Some(e), None),
+            Some(Err(e)) => (None, Some(format!("{e}; rays are cast with obvhs instead"))),
+            None => (None, None),
+        };
+        // obvhs's BVH, unless Embree traverses or the primitives are few enough to be
+        // tested one by one (in input order). Its leaf order is the primitives' order,
+        // for triangles in lanes too (the first of two hits at one distance wins).
+        let cwbvh =
+            (embree.is_none() && prims.len() > BRUTE_FORCE_PRIMS).then(|| bvh::build(&aabbs));
+        if let Some(b) = &cwbvh {
+            prims = b
+                .primitive_indices
+                .iter()
+                .map(|&i| prims[i as usize])
+                .collect();
+        }
+        let mut triangles: Vec<LeafTriangle> = prims
+            .iter()
+            .map(|p| match shapes[p.shape as usize] {
+                Geometry::Mesh(m) if p.index != ANALYTIC => leaf_triangle(m, p.index),
+                _ => LeafTriangle {
+                    p0: Vec3A::ZERO,
+                    e1: Vec3A::ZERO,
+                    e2: Vec3A::ZERO,
+                },
+            })
+            .collect();
+        for c in &mut cuboids {
+            c.first_leaf = triangles.len() as u32;
+            if let Geometry::Mesh(m) = shapes[c.shape as usize] {
+                triangles.extend((0..m.triangles.len() as u32).map(|ti| leaf_triangle(m, ti)));
+            }
+        }
+        let n = prims.len();
+        let caster = match (embree, cwbvh) {
+            (Some(e), _) => Caster::Embree(e),
+            (None, None) => Caster::BruteForce,
+            (None, Some(_)) if !mixed && lanes_allowed && n <= lanes::MAX_TRIANGLES => {
+                Caster::Lanes(TriangleLanes::new(&triangles[..n]))
+            }
+            (None, Some(cwbvh)) => Caster::Obvhs(Bvh { cwbvh, mixed }),
+        };
+        Accel {
+            caster,
+            prims: Primitives {
+                refs: prims,
+                triangles,
+            },
+            analytic,
+            cuboids,
+            bounds,
+            warning,
+        }
+    }
+}
+
+/// Triangle `ti` of `m` as the hit tests read it.
+fn leaf_triangle(m: &TriangleMesh, ti: u32) -> LeafTriangle {
+    let [p0, p1, p2] = m.vertices(ti);
+    LeafTriangle {
+        p0,
+        e1: p1 - p0,
+        e2: p2 - p0,
+    }
+}
+
+/// Embree's scene over the triangles of `prims` (in input order: each mesh's
+/// triangles contiguous, in the mesh's order).
+fn build_embree(
+    shapes: &[&Geometry],
+    prims: &[PrimRef],
+    filtered: bool,
+) -> Result<EmbreeScene, String> {
+    let mut meshes = Vec::new();
+    let mut leaf = 0;
+    while leaf < prims.len() {
+        let shape = prims[leaf].shape;
+        let Geometry::Mesh(m) = shapes[shape as usize] else {
+            return Err(format!("shape {shape} is not a mesh"));
+        };
+        meshes.push(MeshRef {
+            positions: &m.positions,
+            triangles: &m.triangles,
+            first_leaf: leaf as u32,
+            shape,
+        });
+        leaf += m.triangles.len();
+    }
+    let api = embree_api::load()
+        .map_err(|e| format!("Embree 3 does not load ({e}); {}", embree_api::INSTALL_HINT))?;
+    EmbreeScene::build(api, &meshes, filtered)
+}
