@@ -21,6 +21,7 @@ __all__ = [
     "Scene",
     "SceneError",
     "denoise",
+    "fit",
     "load_file",
     "merge",
     "read_exr",
@@ -122,6 +123,30 @@ def regularize(scene, spp=None, seed=0, threads=None, medium=None, predict="diff
         camera_path=None if camera_path is None else str(camera_path), spatial=spatial,
         denoise=denoise,
     )
+
+
+def fit(path, targets, params=("sigma_t", "albedo", "g"), medium=None, spp=32,
+        iterations=100, seed=0, search_path=None, **defines):
+    """Fits a medium's parameters to target images (``mediareg fit``).
+
+    ``path``: the scene file (its camera and lighting render the targets; the fit starts
+    from its medium's values); ``targets``: float32 arrays (H, W, 3), or ``(array,
+    {name: value})`` for a target rendered with other scene parameters (another light);
+    ``params``: of sigma_t, albedo, g, scale; ``medium``: the medium's XML id (needed
+    when there are several); ``spp``: samples per pixel of each iteration's renders;
+    ``defines``: scene parameters for every target. Returns a dict: ``params`` (name:
+    value; a chromatic one per channel, ``sigma_t[0]``...), ``ci`` (name: (lo, hi), 95%,
+    infinite where the images do not determine it), ``loss`` (per iteration),
+    ``iterations``, ``seconds``. Ctrl-C raises KeyboardInterrupt.
+    """
+    targets = [
+        (_np.ascontiguousarray(t[0], _np.float32), t[1]) if isinstance(t, tuple)
+        else _np.ascontiguousarray(t, _np.float32)
+        for t in targets
+    ]
+    return _mediareg.fit(path, targets, params=list(params), medium=medium, spp=spp,
+                         iterations=iterations, seed=seed, search_path=search_path,
+                         **defines)
 
 
 def write_exr(path, array, spp=None):

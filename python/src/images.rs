@@ -18,7 +18,7 @@ pub(crate) fn to_numpy(py: Python<'_>, img: Image) -> PyResult<Bound<'_, PyArray
     PyArray1::from_vec(py, img.pixels.into_flattened()).reshape([h, w, 3])
 }
 
-fn from_numpy(array: &PyReadonlyArray3<'_, f32>) -> PyResult<Image> {
+pub(crate) fn from_numpy(array: &PyReadonlyArray3<'_, f32>) -> PyResult<Image> {
     let [height, width, c] = array.shape() else {
         unreachable!("a 3-d array")
     };

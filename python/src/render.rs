@@ -68,8 +68,9 @@ pub fn render<'py>(
     }
     let params = match &names {
         None => Vec::new(),
-        Some(list) => MediumParam::parse_list(list)
-            .map_err(|e| bad_arg(format!("gradient={list:?}: {e}")))?,
+        Some(list) => {
+            MediumParam::parse_list(list).map_err(|e| bad_arg(format!("gradient={list:?}: {e}")))?
+        }
     };
     let (gradient, medium_index) = if params.is_empty() {
         (Gradient::None, 0)
@@ -79,7 +80,10 @@ pub fn render<'py>(
                 GradientError::Medium(MediumChoiceError::Several { .. }) => " (medium=ID)",
                 _ => "",
             };
-            bad_arg(format!("gradient={:?}: {e}{hint}", names.as_deref().unwrap_or("")))
+            bad_arg(format!(
+                "gradient={:?}: {e}{hint}",
+                names.as_deref().unwrap_or("")
+            ))
         })?
     };
     if !as_dict && params.len() > 1 {
@@ -166,7 +170,7 @@ pub(crate) fn thread_pool(threads: Option<usize>) -> PyResult<Option<rayon::Thre
 /// `SIGNAL_CHECK` to run Python's signal handlers (on the main thread: Ctrl-C raises
 /// KeyboardInterrupt there). A handler's exception sets `cancel` (the render drops the
 /// pass under way), waits for the thread, and is raised.
-fn interruptible<T: Send>(
+pub(crate) fn interruptible<T: Send>(
     py: Python<'_>,
     cancel: &AtomicBool,
     work: impl FnOnce() -> T + Send,

@@ -77,6 +77,9 @@ pub struct FitResult {
     pub values: Vec<f32>,
     /// 95% intervals per unknown (±∞ where the images do not determine it).
     pub ci: Vec<[f32; 2]>,
+    /// Whether the averaged iterates had stopped moving (else more iterations, or more
+    /// samples per iteration, are needed before the intervals mean what they say).
+    pub converged: bool,
     /// The loss (mean squared residual) of each iteration's render.
     pub loss: Vec<f64>,
     pub iterations: u32,
@@ -144,6 +147,7 @@ pub fn fit(
     };
     let mut losses = Vec::new();
     let mut iterates = Vec::new();
+    let (mut gain, mut previous) = (1.0f64, None::<DVector<f64>>);
     for it in 0..settings.iterations {
         set_values(targets, mi, &unknowns, &x);
         let seed = settings.seed.wrapping_add(2 * it as u64);
@@ -162,7 +166,18 @@ pub fn fit(
         if cancelled() {
             break;
         }
-        x = step(&e1, &e2, &unknowns, &x);
+        let delta = gauss_newton(&e1, &e2);
+        // Step-length adaptation: steps that keep their direction lengthen the next
+        // (a poorly determined direction, where render noise on JᵀJ shortens the Gauss–
+        // Newton step, is crossed in fewer iterations); a reversal shortens it again.
+        if let Some(p) = &previous {
+            gain = match p.dot(&delta) > 0.0 {
+                true => (gain * 1.5).min(MAX_GAIN),
+                false => (gain * 0.5).max(1.0),
+            };
+        }
+        x = bounded_step(&unknowns, &x, &(&delta * gain));
+        previous = Some(delta);
     }
     // The mean of the last half of the iterates.
     let tail = &iterates[iterates.len() / 2..];
@@ -176,10 +191,22 @@ pub fn fit(
         .map(|(u, &x)| u.from_x(x))
         .collect();
     let ci = intervals(targets, settings, mi, &unknowns, &best_x);
+    // Still moving: the averaged iterates' two halves differ by more than the interval's
+    // half-width (the interval then understates the error).
+    let half = tail.len() / 2;
+    let mean_of =
+        |xs: &[Vec<f64>], i: usize| xs.iter().map(|x| x[i]).sum::<f64>() / xs.len().max(1) as f64;
+    let converged = half == 0
+        || unknowns.iter().enumerate().all(|(i, u)| {
+            let drift =
+                (u.from_x(mean_of(&tail[half..], i)) - u.from_x(mean_of(&tail[..half], i))).abs();
+            !(drift > 0.5 * (ci[i][1] - ci[i][0]))
+        });
     Ok(FitResult {
         unknowns,
         values,
         ci,
+        converged,
         iterations: losses.len() as u32,
         loss: losses,
         seconds: start.elapsed().as_secs_f64(),
@@ -205,7 +232,11 @@ fn check(targets: &[FitTarget], settings: &FitSettings) -> Result<u32, FitError>
                 film.crop_size.1
             )));
         }
-        if t.scene.media.get(mi as usize).is_some_and(|m| m.heterogeneous.is_some()) {
+        if t.scene
+            .media
+            .get(mi as usize)
+            .is_some_and(|m| m.heterogeneous.is_some())
+        {
             return Err(FitError::Gradient(GradientError::Unsupported(
                 "fit: heterogeneous media are not fitted yet (render --gradient scale gives their derivative)".into(),
             )));
@@ -224,15 +255,21 @@ fn set_values(targets: &mut [FitTarget], mi: u32, unknowns: &[Unknown], x: &[f64
     }
 }
 
-/// The damped Gauss–Newton step from `x` with the decorrelated gradient
-/// (J₁ᵀr₂ + J₂ᵀr₁)/2 and the curvature (J₁ᵀJ₁ + J₂ᵀJ₂)/2, bounded per unknown. The
-/// curvature is positive semi-definite, for a stable solve; the unbiased cross product
-/// J₁ᵀJ₂ was tried and its noisy small eigenvalue threw the thin cube's fit far along
-/// its valley. Render noise on J₁ᵀJ₁'s diagonal shortens steps along a poorly
-/// determined direction instead: the fit goes there slowly, but goes.
-fn step(e1: &Evaluation, e2: &Evaluation, unknowns: &[Unknown], x: &[f64]) -> Vec<f64> {
+/// The intervals' renders take this many times an iteration's samples.
+const CI_SPP_FACTOR: u32 = 8;
+
+/// The longest a step is stretched by the step-length adaptation.
+const MAX_GAIN: f64 = 8.0;
+
+/// The damped Gauss–Newton step with the decorrelated gradient (J₁ᵀr₂ + J₂ᵀr₁)/2 and
+/// the curvature (J₁ᵀJ₁ + J₂ᵀJ₂)/2. The curvature is positive semi-definite, for a
+/// stable solve; the unbiased cross product J₁ᵀJ₂ was tried and its noisy small
+/// eigenvalue threw the thin cube's fit far along its valley. Render noise on J₁ᵀJ₁'s
+/// diagonal shortens steps along a poorly determined direction instead (the step-length
+/// adaptation in `fit` makes up for it).
+fn gauss_newton(e1: &Evaluation, e2: &Evaluation) -> DVector<f64> {
     const LAMBDA: f64 = 1e-3;
-    let k = unknowns.len();
+    let k = e1.columns.len();
     let jtr = DVector::from_fn(k, |i, _| {
         0.5 * (dot(&e1.columns[i], &e2.residuals) + dot(&e2.columns[i], &e1.residuals))
     });
@@ -242,13 +279,16 @@ fn step(e1: &Evaluation, e2: &Evaluation, unknowns: &[Unknown], x: &[f64]) -> Ve
     for i in 0..k {
         a[(i, i)] += LAMBDA * a[(i, i)].max(1e-30);
     }
-    let delta = a
-        .clone()
+    a.clone()
         .cholesky()
         .map(|c| c.solve(&(-&jtr)))
         .or_else(|| a.pseudo_inverse(1e-12).ok().map(|p| p * (-&jtr)))
-        .unwrap_or_else(|| DVector::zeros(k));
-    // One factor for the whole step keeps its direction.
+        .unwrap_or_else(|| DVector::zeros(k))
+}
+
+/// x + δ, δ shortened as a whole (keeping its direction) to each unknown's largest
+/// step, then clamped into range.
+fn bounded_step(unknowns: &[Unknown], x: &[f64], delta: &DVector<f64>) -> Vec<f64> {
     let shrink = unknowns
         .iter()
         .enumerate()
@@ -277,7 +317,13 @@ fn evaluate(
         let (rendered, derivs) = render_with_derivatives(t, settings, mi, seed);
         let m = &t.scene.media[mi as usize];
         let chain: Vec<f64> = unknowns.iter().map(|u| u.dv_dx(u.value(m))).collect();
-        for (p, (mine, want)) in rendered.image.pixels.iter().zip(&t.image.pixels).enumerate() {
+        for (p, (mine, want)) in rendered
+            .image
+            .pixels
+            .iter()
+            .zip(&t.image.pixels)
+            .enumerate()
+        {
             for c in 0..3 {
                 eval.residuals.push((mine[c] - want[c]) as f64);
                 for (j, u) in unknowns.iter().enumerate() {
@@ -323,13 +369,22 @@ fn intervals(
 ) -> Vec<[f32; 2]> {
     let k = unknowns.len();
     let seed = settings.seed.wrapping_add(1 << 32);
-    let e1 = evaluate(targets, settings, mi, unknowns, seed);
-    let e2 = evaluate(targets, settings, mi, unknowns, seed + 1);
+    // At more samples than an iteration's: the cross product's noise would otherwise
+    // decide whether a weakly determined direction is determined.
+    let more = FitSettings {
+        spp: settings.spp.saturating_mul(CI_SPP_FACTOR),
+        ..settings.clone()
+    };
+    let e1 = evaluate(targets, &more, mi, unknowns, seed);
+    let e2 = evaluate(targets, &more, mi, unknowns, seed + 1);
     let cross = cross(&e1, &e2);
     // The residual variance of one render (the noise and what the model misses).
     let n = e1.residuals.len();
     let s2 = 0.5 * (dot(&e1.residuals, &e1.residuals) + dot(&e2.residuals, &e2.residuals))
         / (n.saturating_sub(k)).max(1) as f64;
+    // The estimate is the mean of the averaged iterates, each from renders at the
+    // iteration's samples; its noise is bounded by one iteration's: s² at that spp.
+    let s2 = s2 * CI_SPP_FACTOR as f64;
     let eig = cross.clone().symmetric_eigen();
     // Directions whose curvature is not clearly positive are not determined.
     let top = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);

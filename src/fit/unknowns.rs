@@ -93,9 +93,11 @@ impl Unknown {
                     m.albedo[c] = v.clamp(0.0, 1.0);
                 }
             }
-            MediumParam::G => m.phase = Phase::HenyeyGreenstein {
-                g: v.clamp(-G_LIMIT, G_LIMIT),
-            },
+            MediumParam::G => {
+                m.phase = Phase::HenyeyGreenstein {
+                    g: v.clamp(-G_LIMIT, G_LIMIT),
+                }
+            }
             MediumParam::Scale => {
                 let raw = m.sigma_t / m.scale;
                 m.scale = v.max(1e-6);

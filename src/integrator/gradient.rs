@@ -137,6 +137,7 @@ pub fn medium_gradient(
         albedo: params.contains(&MediumParam::Albedo),
         extinction: params.contains(&MediumParam::SigmaT) || params.contains(&MediumParam::Scale),
         g: params.contains(&MediumParam::G),
+        without_shadow_term: false,
     };
     Ok((Gradient::Medium { medium: mi, params }, mi))
 }

@@ -251,6 +251,10 @@ pub struct MediumParams {
     pub albedo: bool,
     pub extinction: bool,
     pub g: bool,
+    /// A deliberately wrong estimator for the power tests: the shadow rays' ∂ ln T
+    /// left out of the extinction's derivative.
+    #[doc(hidden)]
+    pub without_shadow_term: bool,
 }
 
 impl Gradient {
@@ -271,6 +275,13 @@ impl Gradient {
             Gradient::Medium { medium, params } if params.extinction => Some(medium),
             _ => None,
         }
+    }
+
+    /// Whether the shadow rays' term of the extinction's derivative is left out (the
+    /// power tests' wrong estimator).
+    #[inline]
+    fn without_shadow_term(self) -> bool {
+        matches!(self, Gradient::Medium { params, .. } if params.without_shadow_term)
     }
 
     /// The medium whose phase asymmetry g is differentiated, if any.

@@ -55,6 +55,22 @@ pub struct FitArgs {
     pub output: PathBuf,
 }
 
+/// `name=value,name=value` into its defines; a value may hold commas itself (a
+/// point: `light=1,2,3`): a piece without `=` belongs to the value before it.
+fn split_defines(list: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for piece in list.split(',') {
+        match out.last_mut() {
+            Some(last) if !piece.contains('=') => {
+                last.push(',');
+                last.push_str(piece);
+            }
+            _ => out.push(piece.to_string()),
+        }
+    }
+    out
+}
+
 pub fn run(args: FitArgs) -> Result<()> {
     if args.spp == 0 || args.iterations == 0 {
         bail!("--spp and --iterations must be at least 1");
@@ -65,7 +81,7 @@ pub fn run(args: FitArgs) -> Result<()> {
     let mut targets = Vec::new();
     for spec in &args.target {
         let (path, defines) = match spec.split_once('@') {
-            Some((p, d)) => (p, d.split(',').map(str::to_string).collect::<Vec<_>>()),
+            Some((p, d)) => (p, split_defines(d)),
             None => (spec.as_str(), Vec::new()),
         };
         let mut all = global.clone();
@@ -77,8 +93,8 @@ pub fn run(args: FitArgs) -> Result<()> {
         };
         let scene = load_scene(&args.scene, &opts, &BuildOverrides::default())
             .map_err(|e| anyhow!("{e}"))?;
-        let image = image::read_exr(&PathBuf::from(path))
-            .map_err(|e| anyhow!("--target {path}: {e}"))?;
+        let image =
+            image::read_exr(&PathBuf::from(path)).map_err(|e| anyhow!("--target {path}: {e}"))?;
         targets.push(FitTarget { scene, image });
     }
     install_handler()?;
@@ -131,13 +147,24 @@ pub fn run(args: FitArgs) -> Result<()> {
         "ci": Value::Object(ci),
         "loss": result.loss,
         "iterations": result.iterations,
+        "converged": result.converged,
         "seconds": result.seconds,
         "spp": args.spp,
     });
     std::fs::write(&args.output, serde_json::to_string_pretty(&out)? + "\n")
         .with_context(|| format!("writing {}", args.output.display()))?;
     for ((u, v), c) in result.unknowns.iter().zip(&result.values).zip(&result.ci) {
-        eprintln!("{:>12} = {v:.5}   95% interval [{:.5}, {:.5}]", u.label(), c[0], c[1]);
+        eprintln!(
+            "{:>12} = {v:.5}   95% interval [{:.5}, {:.5}]",
+            u.label(),
+            c[0],
+            c[1]
+        );
+    }
+    if !result.converged {
+        eprintln!(
+            "warning: the parameters were still moving over the last iterations; the intervals understate the error: run more --iterations (or --spp)"
+        );
     }
     if !defines.is_empty() {
         eprintln!(

@@ -478,6 +478,10 @@ impl PathState {
                 _ => self.d_beta,
             };
             // The shadow ray's ∂ ln T and the phase value's ∂ ln p / ∂g.
+            let d_log_tr = match settings.gradient.without_shadow_term() {
+                true => Vec3::ZERO,
+                false => d_log_tr,
+            };
             self.d_sigma_result += x * (self.d_sigma + self.beta * d_log_tr);
             let score = match g_chosen {
                 true => m.phase.log_derivative_g(1.0 - self.ray_d.dot(d) as f64),
@@ -592,6 +596,9 @@ impl PathState {
                 };
                 self.result += self.beta * ls.value * w;
                 self.d_result += self.d_beta * ls.value * w;
+                if settings.gradient.without_shadow_term() {
+                    d_log_tr = Vec3::ZERO;
+                }
                 self.d_sigma_result += (self.d_sigma + self.beta * d_log_tr) * ls.value * w;
                 self.d_g_result += self.d_g * ls.value * w;
             }

@@ -1,0 +1,263 @@
+//! The derivative images (`render --gradient sigma_t,albedo,g,scale`) against Mitsuba
+//! 3's on four scenes (a cube, a mesh boundary, a chromatic medium, a grid's density
+//! scale): reference/derivatives/<scene>.json holds Mitsuba 3's reverse-mode
+//! derivatives (prbvolpath) and Richardson finite differences of its renders (volpath),
+//! each a mean over seeds with its standard error (scripts/derivative_references).
+//! mediareg's are means over seeds too; each comparison is a Welch t-test of the image
+//! mean's derivative (per channel for a chromatic parameter, summed over channels for a
+//! grey one), at a per-comparison level that keeps the whole file's false-alarm
+//! probability below FALSE_ALARM (Bonferroni). Power tests: a derivative 5% off, one
+//! with its sign flipped, and one without the shadow rays' term must each fail.
+
+mod common;
+
+use std::path::Path;
+
+use common::{load_seeded, root};
+use mediareg::integrator::volpath::Gradient;
+use mediareg::integrator::{derivative_images, medium_gradient, MediumParam, RenderOptions};
+use serde_json::Value;
+use statrs::distribution::{ContinuousCDF, StudentsT};
+
+/// Whole-file false-alarm probability, and the most comparisons it is shared among.
+const FALSE_ALARM: f64 = 1e-3;
+const COMPARISONS: f64 = 30.0;
+
+/// A mean over seeds and its standard error, per compared value, with its degrees of
+/// freedom.
+#[derive(Clone, Debug)]
+struct Estimate {
+    mean: Vec<f64>,
+    se: Vec<f64>,
+    dof: f64,
+}
+
+fn estimate(samples: &[Vec<f64>]) -> Estimate {
+    let n = samples.len() as f64;
+    let k = samples[0].len();
+    let mean: Vec<f64> = (0..k)
+        .map(|i| samples.iter().map(|s| s[i]).sum::<f64>() / n)
+        .collect();
+    let se = (0..k)
+        .map(|i| {
+            let var = samples
+                .iter()
+                .map(|s| (s[i] - mean[i]).powi(2))
+                .sum::<f64>()
+                / (n - 1.0);
+            (var / n).sqrt()
+        })
+        .collect();
+    Estimate {
+        mean,
+        se,
+        dof: n - 1.0,
+    }
+}
+
+fn from_json(v: &Value, seeds: f64) -> Estimate {
+    let list = |k: &str| -> Vec<f64> {
+        v[k].as_array()
+            .unwrap_or_else(|| panic!("{k} in {v}"))
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    Estimate {
+        mean: list("mean"),
+        se: list("se"),
+        dof: seeds - 1.0,
+    }
+}
+
+/// The largest |t| / critical value over the values compared, ours scaled by `factor`:
+/// above 1 is a failure.
+fn excess(ours: &Estimate, reference: &Estimate, factor: f64) -> f64 {
+    let alpha = FALSE_ALARM / COMPARISONS;
+    (0..reference.mean.len())
+        .map(|i| {
+            let (a, b) = (
+                factor * factor * ours.se[i].powi(2),
+                reference.se[i].powi(2),
+            );
+            // Welch–Satterthwaite degrees of freedom.
+            let dof = (a + b).powi(2) / (a * a / ours.dof + b * b / reference.dof);
+            let t = StudentsT::new(0.0, 1.0, dof).unwrap();
+            let critical = t.inverse_cdf(1.0 - alpha / 2.0);
+            (factor * ours.mean[i] - reference.mean[i]).abs() / (a + b).sqrt() / critical
+        })
+        .fold(0.0, f64::max)
+}
+
+/// One scene's reference and mediareg's derivatives of it, per parameter: (name,
+/// ours, Mitsuba's AD if any, Mitsuba's FD if any).
+type Compared = Vec<(String, Estimate, Option<Estimate>, Option<Estimate>)>;
+
+/// mediareg's derivatives of scene `name` (its reference's defines), `seeds` renders
+/// of `spp` each, with the estimator `tweak` makes of the asked-for one.
+fn compare(name: &str, seeds: u64, spp: u32, tweak: impl Fn(Gradient) -> Gradient) -> Compared {
+    let text = std::fs::read_to_string(root().join(format!("reference/derivatives/{name}.json")))
+        .expect("reference/derivatives: run scripts/derivative_references");
+    let r: Value = serde_json::from_str(&text).unwrap();
+    let defines: Vec<(String, String)> = r["defines"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(k, v)| (k.clone(), v.as_str().unwrap().to_string()))
+        .collect();
+    let defines: Vec<(&str, &str)> = defines
+        .iter()
+        .map(|(k, v)| (k.as_str(), v.as_str()))
+        .collect();
+    let names: Vec<&String> = r["params"].as_object().unwrap().keys().collect();
+    let params: Vec<MediumParam> = names
+        .iter()
+        .map(|n| MediumParam::parse_list(n).unwrap()[0])
+        .collect();
+    let path = root().join(&r["scene"].as_str().unwrap().to_string());
+    let mut samples: Vec<Vec<Vec<f64>>> = vec![Vec::new(); params.len()];
+    for seed in 0..seeds {
+        let scene = load_seeded(Path::new(&path), &defines, spp, 1000 + seed);
+        let (gradient, mi) = medium_gradient(&scene, None, &params).unwrap();
+        let opts = RenderOptions {
+            gradient: tweak(gradient),
+            ..Default::default()
+        };
+        let rendered = mediareg::integrator::render(&scene, &scene.shot, &opts);
+        for (i, (_, img)) in derivative_images(&scene, mi, &params, &rendered)
+            .into_iter()
+            .enumerate()
+        {
+            let img = img.unwrap();
+            let n = img.pixels.len() as f64;
+            let mean: Vec<f64> = (0..3)
+                .map(|c| img.pixels.iter().map(|p| p[c] as f64).sum::<f64>() / n)
+                .collect();
+            assert!(
+                mean.iter().all(|m| m.is_finite()),
+                "{name}: non-finite derivative"
+            );
+            samples[i].push(mean);
+        }
+    }
+    let ad_seeds = r["ad"]["seeds"].as_f64().unwrap();
+    let fd_seeds = r["fd"]["seeds"].as_f64().unwrap();
+    names
+        .iter()
+        .zip(samples)
+        .map(|(n, s)| {
+            let entry = &r["params"][n.as_str()];
+            let ad = entry.get("ad").map(|v| from_json(v, ad_seeds));
+            let chromatic = ad.as_ref().is_some_and(|a| a.mean.len() == 3);
+            let fd = entry.get("fd").map(|v| match chromatic {
+                true => from_json(v, fd_seeds),
+                false => from_json(&v["total"], fd_seeds),
+            });
+            // A grey parameter: the sum over channels.
+            let s: Vec<Vec<f64>> = match chromatic {
+                true => s,
+                false => s.iter().map(|m| vec![m.iter().sum()]).collect(),
+            };
+            ((*n).clone(), estimate(&s), ad, fd)
+        })
+        .collect()
+}
+
+/// The largest excess over a scene's comparisons (AD and FD), ours scaled by `factor`,
+/// printed.
+fn worst(name: &str, compared: &Compared, factor: f64) -> f64 {
+    let mut worst = 0.0f64;
+    for (param, ours, ad, fd) in compared {
+        for (kind, r) in [("AD", ad), ("FD", fd)] {
+            if let Some(r) = r {
+                let e = excess(ours, r, factor);
+                println!(
+                    "{name} {param} vs Mitsuba {kind}: ours {:?} ± {:?}, Mitsuba {:?} ± {:?}; excess {e:.2}",
+                    ours.mean, ours.se, r.mean, r.se
+                );
+                worst = worst.max(e);
+            }
+        }
+    }
+    worst
+}
+
+fn same(g: Gradient) -> Gradient {
+    g
+}
+
+#[test]
+fn cube_derivatives_match_mitsuba() {
+    let c = compare("medium_cube", 16, 1024, same);
+    let w = worst("medium_cube", &c, 1.0);
+    assert!(
+        w <= 1.0,
+        "medium_cube: a derivative differs from Mitsuba 3's ({w:.2})"
+    );
+    // Power: 5% off, and the sign flipped, fail each parameter.
+    for (param, ours, ad, _) in &c {
+        let ad = ad.as_ref().unwrap();
+        for factor in [1.05, 0.95, -1.0] {
+            let e = excess(ours, ad, factor);
+            assert!(e > 1.0, "{param} × {factor} passed ({e:.2})");
+        }
+    }
+}
+
+#[test]
+fn cube_power_without_shadow_term() {
+    let wrong = |g: Gradient| match g {
+        Gradient::Medium { medium, mut params } => {
+            params.without_shadow_term = true;
+            Gradient::Medium { medium, params }
+        }
+        g => g,
+    };
+    let c = compare("medium_cube", 16, 1024, wrong);
+    let (_, ours, ad, _) = c.iter().find(|(p, ..)| p == "sigma_t").unwrap();
+    let e = excess(ours, ad.as_ref().unwrap(), 1.0);
+    assert!(
+        e > 1.0,
+        "σ_t's derivative without the shadow rays' term passed ({e:.2})"
+    );
+}
+
+#[test]
+fn mesh_boundary_derivatives_match_mitsuba() {
+    let c = compare("bunny_medium", 16, 1024, same);
+    let w = worst("bunny_medium", &c, 1.0);
+    assert!(
+        w <= 1.0,
+        "bunny_medium: a derivative differs from Mitsuba 3's ({w:.2})"
+    );
+}
+
+#[test]
+fn chromatic_derivatives_match_mitsuba() {
+    let c = compare("chromatic_sphere", 16, 1024, same);
+    let w = worst("chromatic_sphere", &c, 1.0);
+    assert!(
+        w <= 1.0,
+        "chromatic_sphere: a derivative differs from Mitsuba 3's ({w:.2})"
+    );
+    for (param, ours, ad, _) in &c {
+        let e = excess(ours, ad.as_ref().unwrap(), 1.05);
+        assert!(e > 1.0, "chromatic {param} × 1.05 passed ({e:.2})");
+    }
+}
+
+#[test]
+fn grid_scale_derivative_matches_mitsuba() {
+    let c = compare("cloud", 16, 128, same);
+    let w = worst("cloud", &c, 1.0);
+    assert!(
+        w <= 1.0,
+        "cloud: a derivative differs from Mitsuba 3's ({w:.2})"
+    );
+    let (_, ours, _, fd) = c.iter().find(|(p, ..)| p == "scale").unwrap();
+    let e = excess(ours, fd.as_ref().unwrap(), -1.0);
+    assert!(
+        e > 1.0,
+        "the grid scale's derivative with its sign flipped passed ({e:.2})"
+    );
+}
