@@ -261,3 +261,28 @@ fn grid_scale_derivative_matches_mitsuba() {
         "the grid scale's derivative with its sign flipped passed ({e:.2})"
     );
 }
+
+/// The command line: a parameter the medium does not have, or that mediareg cannot
+/// differentiate there, is refused naming it and what to do instead; nothing is written.
+#[test]
+fn derivative_command_line_errors() {
+    let run = |scene: &str, params: &str| {
+        let out = std::env::temp_dir().join(format!("mediareg_deriv_{}.exr", std::process::id()));
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_mediareg"))
+            .arg("render")
+            .arg(root().join(scene))
+            .args(["--gradient", params, "--spp", "1", "--no-png", "-o"])
+            .arg(&out)
+            .output()
+            .expect("run mediareg");
+        assert!(!o.status.success(), "{scene} --gradient {params}: expected failure");
+        assert!(!out.exists(), "no output on error");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let e = run("mitsuba_scenes/medium_on_floor.xml", "albedo,g");
+    assert!(e.contains("has no g") && e.contains("hg"), "{e}");
+    let e = run("mitsuba_scenes/cloud.xml", "sigma_t");
+    assert!(e.contains("sigma_t") && e.contains("scale"), "{e}");
+    let e = run("mitsuba_scenes/medium_cube.xml", "sigma_t,density");
+    assert!(e.contains("density") && e.contains("sigma_t, albedo, g or scale"), "{e}");
+}

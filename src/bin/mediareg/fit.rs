@@ -15,9 +15,9 @@ use crate::common::{medium_error, parse_defines, set_threads};
 use crate::interrupt::{install_handler, INTERRUPT};
 
 /// Fit a medium's parameters (sigma_t, albedo, g, scale) to one or more target images,
-/// starting from the scene's values: Levenberg–Marquardt on the squared error, with the
+/// starting from the scene's values: damped Gauss–Newton on the squared error, with the
 /// derivatives rendered in the same paths as the image. Writes OUT.json: the values,
-/// their 95% intervals, the loss of each iteration, the seconds taken.
+/// their 95% intervals, the loss and values of each iteration, the seconds taken.
 #[derive(Args)]
 pub struct FitArgs {
     /// The scene file (Mitsuba 3 XML) whose medium is fitted.
@@ -106,7 +106,14 @@ pub fn run(args: FitArgs) -> Result<()> {
         seed: args.seed,
         cancel: Some(Arc::clone(&INTERRUPT)),
     };
+    let start = std::time::Instant::now();
+    let mut trace = Vec::new();
     let result = fit::fit(&mut targets, &settings, |p| {
+        let mut at = Map::new();
+        for (u, v) in p.unknowns.iter().zip(p.values) {
+            at.insert(u.label(), json!(v));
+        }
+        trace.push(json!({"seconds": start.elapsed().as_secs_f64(), "params": at}));
         let values: Vec<String> = p
             .unknowns
             .iter()
@@ -148,6 +155,7 @@ pub fn run(args: FitArgs) -> Result<()> {
         "loss": result.loss,
         "iterations": result.iterations,
         "converged": result.converged,
+        "trace": trace,
         "seconds": result.seconds,
         "spp": args.spp,
     });
