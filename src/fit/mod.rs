@@ -176,6 +176,11 @@ pub fn fit(
                 false => (gain * 0.5).max(1.0),
             };
         }
+        // Over the iterates that are averaged, half steps: the iterates then jitter
+        // around the optimum by less than the noise would carry them along a valley.
+        if 2 * (it + 1) >= settings.iterations {
+            gain = 0.5;
+        }
         x = bounded_step(&unknowns, &x, &(&delta * gain));
         previous = Some(delta);
     }
