@@ -101,8 +101,8 @@ pub fn albedo_gradient(scene: &Scene, medium: Option<&str>) -> Result<Gradient, 
 }
 
 /// The derivatives in `params` of the medium with XML id `medium` (or the scene's only
-/// one), and its index. The albedo alone is `Gradient::Albedo` (which the lane path
-/// also renders).
+/// one), and its index. The albedo alone is `Gradient::Albedo`. The lane path
+/// (`integrator::packet`) renders either, as the scalar one does.
 pub fn medium_gradient(
     scene: &Scene,
     medium: Option<&str>,

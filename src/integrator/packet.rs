@@ -20,6 +20,10 @@
 //! is left to BSDF and phase sampling under volpath, so a path that escapes sees it
 //! with weight 1.
 //!
+//! Beside the radiance it estimates the derivatives volpath does (`volpath::Gradient`):
+//! the albedo's (or the difference) in dβ, and one medium's extinction's and g's in
+//! `derivatives`, each updated wherever β is, and only where the render asks for it.
+//!
 //! The estimator is the scalar one's, step for step, with the random draws in the
 //! scalar path's order (the hero channel; per vertex the roulette, the distance, the
 //! emitter sample, the phase or BSDF sample), so each lane's first draws come from its
@@ -39,6 +43,7 @@
 //! (`kernel_tests` holds each lane to the scalar result).
 
 mod boundary;
+mod derivatives;
 mod emitters;
 mod heterogeneous;
 mod lanes;
@@ -55,7 +60,7 @@ use crate::geometry::RAY_EPSILON;
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
 pub use lanes::WIDTH;
-use lanes::{lanes_of, L, V3};
+use lanes::{lanes_of, mask_of, L, V3};
 use paths::{Context, PacketPaths};
 pub use scene::{PacketScene, PacketSettings, MAX_ABS_G};
 use shapes::{medium_normal, surface_normal};
@@ -72,6 +77,10 @@ struct MediumLanes {
     a: V3,
     b: V3,
     g: L,
+    /// The lanes in the medium whose extinction, and whose (Henyey–Greenstein) g, is
+    /// differentiated (`PacketSettings::extinction`, `g`).
+    chosen_sigma: L,
+    chosen_g: L,
 }
 
 /// The samples of the camera rays `(o, d, tmax)` (at most [`WIDTH`], `d` unit), each
@@ -87,7 +96,7 @@ pub fn sample_packet(
 ) {
     let n = rays.len();
     assert!(n <= WIDTH && rngs.len() == n && out.len() == n);
-    let mut paths = PacketPaths::new(ps, rays, rngs);
+    let mut paths = PacketPaths::new(ps, settings, rays, rngs);
     let ctx = Context::new(scene, ps, settings, &paths);
     while paths.step(&ctx, rngs) {}
     paths.write(out);
@@ -220,6 +229,12 @@ fn gather_media(
         g: L::from(std::array::from_fn::<f32, WIDTH, _>(|k| {
             ps.media[medium[k]].g
         })),
+        chosen_sigma: mask_of(|k| {
+            bits >> k & 1 == 1 && settings.extinction == Some(medium[k] as u32)
+        }),
+        chosen_g: mask_of(|k| {
+            bits >> k & 1 == 1 && settings.g == Some(medium[k] as u32) && ps.media[medium[k]].hg
+        }),
     }
 }
 

@@ -94,9 +94,6 @@ pub fn packet_scene(
     if opts.scalar_paths || std::env::var("MEDIAREG_PATHS").is_ok_and(|v| v == "scalar") {
         return Err("scalar paths asked for".into());
     }
-    if opts.gradient.beyond_albedo() {
-        return Err("the lane path estimates the albedo's derivative only".into());
-    }
     let ps = PacketScene::new(scene)?;
     // The camera rays start on the near plane, a rectangle: its corners inside the
     // (convex) shape of the camera's medium put every ray's origin there.

@@ -303,12 +303,6 @@ impl Gradient {
         }
     }
 
-    /// Whether the render estimates more than the albedo's derivative (the lane path
-    /// does not).
-    pub fn beyond_albedo(self) -> bool {
-        self.extinction_medium().is_some() || self.g_medium().is_some()
-    }
-
     /// How a scattering vertex in medium `mi` of albedo `albedo` updates dβ, the
     /// derivative's (or the difference's) weight: dβ' = w (dβ · a + β · b) with (a, b)
     /// returned here and w the flight's weight. The derivative of β w α: (α, 1) in the

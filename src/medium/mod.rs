@@ -124,6 +124,22 @@ pub fn collision_weight<F: Float>(
     tr.mul(sigma_t).div(sigma_hero * tr_hero)
 }
 
+/// ∂/∂σ_t (per channel) of [`collision_weight`]'s f = T σ_t over the same, detached
+/// p_h: ∂(σ_t e^{−σ_t t})/∂σ_t = T (1 − σ_t t), so T (1 − σ_t t) / (σ_t,h T_h)
+/// (volpath's `MediumParams`). Finite where a channel's σ_t is 0, unlike
+/// [`collision_weight`] times the score 1/σ_t − t.
+#[inline(always)]
+pub fn collision_weight_d_sigma<F: Float>(
+    tr: Vector3<F>,
+    sigma_t: Vector3<F>,
+    t: F,
+    sigma_hero: F,
+    tr_hero: F,
+) -> Vector3<F> {
+    tr.mul(Vector3::all(F::one()).sub(sigma_t.scale(t)))
+        .div(sigma_hero * tr_hero)
+}
+
 /// Passing a whole segment: f = T, p_h = T_h (the other half of [`collision_weight`]).
 #[inline(always)]
 pub fn pass_weight<F: Float>(tr: Vector3<F>, tr_hero: F) -> Vector3<F> {

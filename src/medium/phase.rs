@@ -96,13 +96,15 @@ pub fn direction_at<F: Float>(d: Vector3<F>, w: F, u: F) -> Vector3<F> {
 /// ∂ ln p_HG / ∂g at 1 − cos θ = `w` (the score of g, for its derivative with sampling
 /// detached): ln p_HG = ln(1 − g²) − (3/2) ln D with D = 1 + g² − 2g cos θ, so
 ///   ∂ ln p_HG / ∂g = −2g / (1 − g²) − 3 (g − cos θ) / D,
-/// D in [`hg_peak`]'s cancellation-free form and g − cos θ = g − 1 + w.
-#[inline]
-pub fn hg_log_derivative_g(g: f64, w: f64) -> f64 {
+/// D in [`hg_peak`]'s cancellation-free form and g − cos θ = g − 1 + w. The scalar
+/// path evaluates it in f64, the lanes in f32.
+#[inline(always)]
+pub fn hg_log_derivative_g<F: Float>(g: F, w: F) -> F {
+    let (one, two) = (F::one(), F::of(2.0));
     let a = g.abs();
-    let peak = if g >= 0.0 { w } else { 2.0 - w };
-    let denom = (1.0 - a) * (1.0 - a) + 2.0 * a * peak;
-    -2.0 * g / (1.0 - g * g) - 3.0 * (g - 1.0 + w) / denom
+    let peak = F::select(g.ge(F::zero()), w, two - w);
+    let denom = (one - a) * (one - a) + two * a * peak;
+    F::of(-2.0) * g / (one - g * g) - F::of(3.0) * (g - one + w) / denom
 }
 
 /// p_R(cos θ) = 3/(16π) (1 + cos² θ).

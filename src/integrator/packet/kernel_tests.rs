@@ -16,9 +16,10 @@ use crate::integrator::roulette::continue_probability;
 use crate::medium::heterogeneous::{
     next_tentative, null_weight, ratio_roulette, ratio_weight, real_probability, real_weight,
 };
-use crate::medium::phase::{direction_at, hg_eval, hg_sample};
+use crate::medium::phase::{direction_at, hg_eval, hg_log_derivative_g, hg_sample};
 use crate::medium::{
-    collision_weight, expected_pass_weight, pass_weight, sample_distance, transmittance_rgb,
+    collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight, sample_distance,
+    transmittance_rgb,
 };
 use crate::sampling::warp::cosine_hemisphere;
 use crate::sampling::{mis_weight, Pcg32};
@@ -138,7 +139,7 @@ fn fresnel_all<F: Float>([c, eta]: [F; 2]) -> Vec<F> {
 
 fn hg_all<F: Float>([g, c, u]: [F; 3]) -> Vec<F> {
     let (w, p) = hg_sample(g, u);
-    vec![hg_eval(g, c), w, p]
+    vec![hg_eval(g, c), w, p, hg_log_derivative_g(g, F::one() - c)]
 }
 
 fn frame_all<F: Float>([x, y, z, a, b, c]: [F; 6]) -> Vec<F> {
@@ -150,6 +151,7 @@ fn weights_all<F: Float>([t0, t1, t2, s0, s1, s2, r0, r1, r2]: [F; 9]) -> Vec<F>
     let (tr, sigma, r) = (v3(t0, t1, t2), v3(s0, s1, s2), v3(r0, r1, r2));
     [
         out3(collision_weight(tr, sigma, s0, t0)),
+        out3(collision_weight_d_sigma(tr, sigma, r1, s0, t0)),
         out3(pass_weight(tr, t1)),
         out3(expected_pass_weight(tr, t2, r)),
         vec![continue_probability(tr, sigma, r0), mis_weight(s1, s2)],
@@ -346,4 +348,71 @@ fn the_kernel_comparison_catches_a_one_ulp_change() {
         )
     });
     assert!(caught.is_err(), "an exp 8 ulp off went unseen");
+}
+
+/// The sphere light's cone in lanes is the scalar `Sphere::sample_cone`: the same
+/// direction, distance and pdf for the same draws, from near (a wide cone) and far (a
+/// cone under the small-angle threshold), and the points inside the sphere handed to
+/// the scalar code.
+#[test]
+fn the_sphere_cone_in_lanes_is_the_scalar_one() {
+    use super::lanes::V3;
+    use crate::geometry::shape::Sphere;
+    use glam::Vec3A;
+    let sphere = Sphere {
+        center: Vec3A::new(0.3, -0.2, 1.0),
+        radius: 0.5,
+        flip_normals: false,
+        axes: glam::Mat3A::IDENTITY,
+    };
+    let mut rng = Pcg32::new(7, 1);
+    for far in [1.2f32, 40.0] {
+        for _ in 0..200 {
+            let u1 = L::from(std::array::from_fn::<f32, 8, _>(|_| rng.next_1d()));
+            let u2 = L::from(std::array::from_fn::<f32, 8, _>(|_| rng.next_1d()));
+            let points: [Vec3A; 8] = std::array::from_fn(|_| {
+                let dir = Vec3A::new(
+                    rng.next_1d() - 0.5,
+                    rng.next_1d() - 0.5,
+                    rng.next_1d() - 0.5,
+                );
+                sphere.center + dir.normalize_or(Vec3A::X) * far
+            });
+            let p = V3::from_fn(|k| Vec3::from(points[k]));
+            let c =
+                super::scatter::sample_cone(Vec3::from(sphere.center), sphere.radius, p, u1, u2);
+            let (ua, ub) = (u1.to_array(), u2.to_array());
+            for k in 0..8 {
+                let s = sphere
+                    .sample_cone(points[k], glam::Vec2::new(ua[k], ub[k]))
+                    .expect("outside");
+                assert!(c.ok.move_mask() >> k & 1 == 1 && c.inside.move_mask() >> k & 1 == 0);
+                let d = c.d.lane_a(k);
+                assert!((d - s.d).length() < 1e-4, "far {far}: {d} against {}", s.d);
+                let dist = c.dist.to_array()[k];
+                assert!(
+                    (dist - s.dist).abs() <= 1e-4 * s.dist,
+                    "{dist} against {}",
+                    s.dist
+                );
+                let pdf = c.pdf.to_array()[k];
+                assert!(
+                    (pdf - s.pdf).abs() <= 1e-5 * s.pdf,
+                    "{pdf} against {}",
+                    s.pdf
+                );
+            }
+        }
+    }
+    let inside_points =
+        V3::from_fn(|k| Vec3::from(sphere.center) + Vec3::X * (sphere.radius * k as f32 / 8.0));
+    let c = super::scatter::sample_cone(
+        Vec3::from(sphere.center),
+        sphere.radius,
+        inside_points,
+        L::splat(0.3),
+        L::splat(0.6),
+    );
+    assert_eq!(c.inside.move_mask(), 0xff);
+    assert_eq!(c.ok.move_mask(), 0);
 }

@@ -7,6 +7,7 @@ use glam::{Vec3, Vec3A};
 use wide::{CmpEq, CmpGe, CmpGt, CmpLt};
 
 use super::boundary::boundary_sample;
+use super::derivatives::{all_lanes, Derivatives};
 use super::emitters::sample_emitters;
 use super::lanes::{draw_1d, draw_2d, mask_of, L, V3, WIDTH};
 use super::shapes::{shadow_transmittance, surface_hit, MediumSpan};
@@ -18,9 +19,10 @@ use super::{
 use crate::integrator::roulette::continue_probability;
 use crate::integrator::sample::PathSample;
 use crate::medium::heterogeneous::HeterogeneousMedium;
-use crate::medium::phase::hg_eval;
+use crate::medium::phase::{hg_eval, hg_log_derivative_g};
 use crate::medium::{
-    collision_weight, expected_pass_weight, pass_weight, sample_distance, transmittance_rgb,
+    collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight, sample_distance,
+    transmittance_rgb,
 };
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
@@ -95,6 +97,8 @@ pub(super) struct PacketPaths {
     /// The hero channel: x, y where these are set, else z.
     hero_x: L,
     hero_y: L,
+    /// The derivatives in a medium's extinction and g, where asked for.
+    derivs: Derivatives,
 }
 
 impl<'a> Context<'a> {
@@ -113,6 +117,8 @@ impl<'a> Context<'a> {
                 a: V3::splat(settings.factor_a[0]),
                 b: V3::splat(settings.factor_b[0]),
                 g: L::splat(m.g),
+                chosen_sigma: all_lanes(settings.extinction == Some(0)),
+                chosen_g: all_lanes(settings.g == Some(0) && m.hg),
             }
         });
         Context {
@@ -128,7 +134,12 @@ impl<'a> Context<'a> {
 impl PacketPaths {
     /// The camera rays `(o, d, tmax)` (at most [`WIDTH`]), each lane's hero channel
     /// drawn first from its stream, as the scalar path draws it.
-    pub(super) fn new(ps: &PacketScene, rays: &[(Vec3A, Vec3A, f32)], rngs: &mut [Pcg32]) -> Self {
+    pub(super) fn new(
+        ps: &PacketScene,
+        settings: &PacketSettings,
+        rays: &[(Vec3A, Vec3A, f32)],
+        rngs: &mut [Pcg32],
+    ) -> Self {
         let n = rays.len();
         let none = L::splat(NONE);
         let ray = |k: usize| rays.get(k).copied().unwrap_or((Vec3A::ZERO, Vec3A::Z, 0.0));
@@ -164,6 +175,7 @@ impl PacketPaths {
             },
             hero_x: mask_of(|k| hero[k] == 0),
             hero_y: mask_of(|k| hero[k] == 1),
+            derivs: Derivatives::new(settings),
         }
     }
 
@@ -180,9 +192,10 @@ impl PacketPaths {
             *s = PathSample {
                 radiance: self.result.lane(k),
                 second: self.d_result.lane(k),
+                d_sigma: self.derivs.sigma_result.lane(k),
+                d_g: self.derivs.g_result.lane(k),
                 seen_emission: self.seen_emission.lane(k),
                 valid: valid >> k & 1 == 1,
-                ..Default::default()
             };
         }
     }
@@ -217,7 +230,9 @@ impl PacketPaths {
     #[inline(always)]
     fn survive(&mut self, ctx: &Context, rngs: &mut [Pcg32]) -> bool {
         let ps = ctx.ps;
-        self.alive &= !(self.beta.is_zero() & self.d_beta.is_zero());
+        self.alive &= !self
+            .derivs
+            .zero_of(self.beta.is_zero() & self.d_beta.is_zero());
         self.alive &= self.depth.cmp_lt(L::splat(ps.max_depth as f32));
         if self.alive.none() {
             return false;
@@ -237,6 +252,7 @@ impl PacketPaths {
             let go_on = played & self.alive;
             self.beta = self.beta.select(go_on, self.beta.div(q));
             self.d_beta = self.d_beta.select(go_on, self.d_beta.div(q));
+            self.derivs.div(go_on, q);
         }
         true
     }
@@ -305,8 +321,8 @@ impl PacketPaths {
         };
         let (collided, flight, d_beta_before) = self.sample_flight(ctx, ends, m, rngs);
         let passed = in_medium & !collided;
-        self.alive &=
-            !in_medium | (self.beta.is_finite() & self.r_u.is_finite() & self.d_beta.is_finite());
+        let finite = self.beta.is_finite() & self.r_u.is_finite() & self.d_beta.is_finite();
+        self.alive &= !in_medium | self.derivs.finite_of(finite);
         let collided = collided & self.alive;
         self.depth = collided.blend(self.depth + L::ONE, self.depth);
         self.valid |= collided;
@@ -367,6 +383,10 @@ impl PacketPaths {
         self.d_result = self
             .d_result
             .select(finite, self.d_result.add(self.d_beta.mul(x)));
+        // ∂T/∂σ_t = −t T in the differentiated medium.
+        let d_log = V3::all(m.chosen_sigma.blend(-ends.t_end, L::ZERO));
+        self.derivs
+            .gather_light(finite, x, self.beta, (d_log, L::ZERO));
         ahead & !le.is_zero()
     }
 
@@ -389,6 +409,7 @@ impl PacketPaths {
                     heterogeneous::sample_flight(h, self.o, self.d, ends.t_end, in_medium, rngs);
                 self.beta = self.beta.select(in_medium, self.beta.mul(f.weight));
                 self.d_beta = self.d_beta.select(in_medium, self.d_beta.mul(f.weight));
+                self.derivs.scale(in_medium, f.weight);
                 (in_medium & f.collided, f.t, f.albedo)
             }
             None => {
@@ -404,9 +425,26 @@ impl PacketPaths {
                     let w_collided = collision_weight(tr, m.sigma, m.sigma_hero, tr_hero);
                     let w_passed = pass_weight(tr, tr_hero);
                     let w = w_passed.select(collided, w_collided);
+                    self.derivs.scale(in_medium, w);
+                    if self.derivs.sigma_on {
+                        // ∂f/∂σ_t over the same p: T (1 − σ_t t) at a collision, −t T
+                        // passing (volpath's `MediumParams`).
+                        let dw = collision_weight_d_sigma(tr, m.sigma, t, m.sigma_hero, tr_hero);
+                        let dw = w_passed.scale(-t).select(collided, dw);
+                        self.derivs
+                            .add_sigma(in_medium & m.chosen_sigma, self.beta, dw);
+                    }
                     self.beta = self.beta.select(in_medium, self.beta.mul(w));
                     self.d_beta = self.d_beta.select(in_medium, self.d_beta.mul(w));
                     self.r_u = self.r_u.select(in_medium, self.r_u.mul(w));
+                }
+                if ctx.ps.grey && self.derivs.sigma_on {
+                    // ∂ ln(σ_t e^{−σ_t t}) = 1/σ_t − t at a collision, −t passing a
+                    // (finite) stretch; f / p = 1.
+                    let s = collided.blend(L::ONE / m.sigma_hero - flight, -ends.t_end);
+                    let finite = collided | ends.t_end.is_finite();
+                    let mask = in_medium & m.chosen_sigma & finite;
+                    self.derivs.add_sigma(mask, self.beta, V3::all(s));
                 }
                 (collided, flight, V3::splat(Vec3::ONE))
             }
@@ -422,11 +460,23 @@ impl PacketPaths {
         self.beta = self
             .beta
             .select(collided, self.beta.mul(m.albedo.mul(volume_albedo)));
+        self.derivs.scale(collided, m.albedo.mul(volume_albedo));
+        if let Some(h) = ctx.het.filter(|_| self.derivs.sigma_on) {
+            // d/d scale: 1/scale at a real collision (β with its α now), −∫σ over the
+            // flight (one lookup's estimate).
+            let mask = in_medium & m.chosen_sigma;
+            let end = collided.blend(flight, ends.t_end);
+            let depth = heterogeneous::depth_estimate(h, self.o, self.d, (L::ZERO, end), mask);
+            let s = collided.blend(L::splat(1.0 / h.scale), L::ZERO);
+            self.derivs
+                .add_sigma(mask, self.beta, V3::all(s).sub(depth));
+        }
         if !ctx.ps.grey && ctx.het.is_none() {
             // Keep mean(r) = 1 (volpath's rescaling).
             let k = in_medium.blend(self.r_u.mean(), L::ONE);
             self.beta = self.beta.div(k);
             self.d_beta = self.d_beta.div(k);
+            self.derivs.div_all(k);
             d_beta_before = d_beta_before.div(k);
             self.r_u = self.r_u.div(k);
         }
@@ -450,11 +500,14 @@ impl PacketPaths {
         if ps.samples_emitters && nee.any() {
             let es = sample_emitters(ctx.scene, ps, p, nee, rngs);
             if es.some.any() {
-                let phase = hg_eval(m.g, d.dot(es.d));
+                let cos = d.dot(es.d);
+                let phase = hg_eval(m.g, cos);
                 let ray = (p, es.d, es.dist);
-                let none = L::splat(NONE);
-                let tr = shadow_transmittance(ctx.scene, ps, ray, self.inside, none, es.some, rngs);
-                let x = es.value.mul(tr).scale(phase * es.weight(phase));
+                let from = (self.inside, L::splat(NONE));
+                let extinction = ctx.settings.extinction;
+                let shadow =
+                    shadow_transmittance(ctx.scene, ps, ray, from, es.some, extinction, rngs);
+                let x = es.value.mul(shadow.tr).scale(phase * es.weight(phase));
                 let weight_of_x = if ctx.settings.nee_ignores_vertex {
                     d_beta_before
                 } else {
@@ -466,11 +519,26 @@ impl PacketPaths {
                 self.d_result = self
                     .d_result
                     .select(es.some, self.d_result.add(weight_of_x.mul(x)));
+                // The shadow ray's ∂ ln T and the phase value's ∂ ln p / ∂g.
+                let g_score = if self.derivs.g_on {
+                    let score = hg_log_derivative_g(m.g, L::ONE - cos);
+                    m.chosen_g.blend(score, L::ZERO)
+                } else {
+                    L::ZERO
+                };
+                self.derivs
+                    .gather_light(es.some, x, self.beta, (shadow.d_log, g_score));
             }
         }
         // ---- Phase function sampling ----
         let (u1, u2) = draw_2d(collided, rngs);
-        let wo = scatter::sample_hg(d, m.g, u1, u2);
+        let (wo, w) = scatter::sample_hg(d, m.g, u1, u2);
+        if self.derivs.g_on {
+            // f / p = 1 (exact sampling): with p detached, ∂f/∂g / p = ∂ ln p / ∂g.
+            let score = hg_log_derivative_g(m.g, w);
+            self.derivs
+                .add_g_score(collided & m.chosen_g, self.beta, score);
+        }
         if ps.area_emitters {
             self.last_p = self.last_p.select(collided, p);
             self.last_pdf = collided.blend(hg_eval(m.g, d.dot(wo)), self.last_pdf);
@@ -527,6 +595,7 @@ impl PacketPaths {
             self.d_result = self
                 .d_result
                 .select(seen, self.d_result.add(self.d_beta.mul(sky)));
+            self.derivs.gather(seen, sky);
             self.alive &= !escapes;
         }
         if at_surface.any() {
@@ -544,6 +613,7 @@ impl PacketPaths {
         self.alive &= !(at_boundary & !ok);
         self.beta = self.beta.select(ok, self.beta.mul(b.weight));
         self.d_beta = self.d_beta.select(ok, self.d_beta.mul(b.weight));
+        self.derivs.scale(ok, b.weight);
         self.eta = ok.blend(self.eta * b.eta, self.eta);
         self.depth = ok.blend(self.depth + L::ONE, self.depth);
         self.crossings = ok.blend(L::ZERO, self.crossings);
@@ -588,6 +658,7 @@ impl PacketPaths {
             );
             self.result = self.result.add(self.beta.mul(seen));
             self.d_result = self.d_result.add(self.d_beta.mul(seen));
+            self.derivs.gather(at_surface & !counted, seen);
             let first = at_surface
                 & self.depth.cmp_eq(L::ZERO)
                 & self.crossings.cmp_eq(L::ZERO)
@@ -603,15 +674,18 @@ impl PacketPaths {
             let lit = es.some & front & cos_out.cmp_gt(L::ZERO);
             if lit.any() {
                 let ray = (self.o, es.d, es.dist);
-                let tr =
-                    shadow_transmittance(ctx.scene, ps, ray, self.inside, hit_surface, lit, rngs);
+                let from = (self.inside, hit_surface);
+                let extinction = ctx.settings.extinction;
+                let shadow = shadow_transmittance(ctx.scene, ps, ray, from, lit, extinction, rngs);
                 let pdf = cos_out * L::splat(std::f32::consts::FRAC_1_PI);
                 let f = rho.scale(pdf * es.weight(pdf));
-                let x = f.mul(es.value).mul(tr);
+                let x = f.mul(es.value).mul(shadow.tr);
                 self.result = self.result.select(lit, self.result.add(self.beta.mul(x)));
                 self.d_result = self
                     .d_result
                     .select(lit, self.d_result.add(self.d_beta.mul(x)));
+                self.derivs
+                    .gather_light(lit, x, self.beta, (shadow.d_log, L::ZERO));
             }
         }
         // The scalar path draws the BSDF's 1-D sample (the lobe's choice) before the 2-D
@@ -629,6 +703,7 @@ impl PacketPaths {
         // Weight f cos / pdf = ρ.
         self.beta = self.beta.select(front, self.beta.mul(rho));
         self.d_beta = self.d_beta.select(front, self.d_beta.mul(rho));
+        self.derivs.scale(front, rho);
         self.depth = front.blend(self.depth + L::ONE, self.depth);
         self.crossings = at_surface.blend(L::ZERO, self.crossings);
         self.specular = at_surface.blend(L::ZERO, self.specular);

@@ -14,10 +14,12 @@ use crate::sampling::warp::cosine_hemisphere;
 
 /// The direction after a Henyey–Greenstein scattering of light travelling along `d`
 /// (unit), from uniform `u1`, `u2` (`Phase::sample`'s, in f32: the packet takes only
-/// moderate |g|). Sampling is exact: the weight is 1.
+/// moderate |g|). Sampling is exact: the weight is 1. With the sample's 1 − cos θ (for
+/// the derivative in g).
 #[inline(always)]
-pub fn sample_hg(d: V3, g: L, u1: L, u2: L) -> V3 {
-    direction_at(d, hg_sample_angle(g, u1), u2)
+pub fn sample_hg(d: V3, g: L, u1: L, u2: L) -> (V3, L) {
+    let w = hg_sample_angle(g, u1);
+    (direction_at(d, w, u2), w)
 }
 
 /// A cosine-weighted direction about the unit normal `n` (pdf cos θ / π), by Malley's

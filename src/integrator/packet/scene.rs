@@ -93,6 +93,9 @@ pub struct PacketMedium {
     pub sigma_t: Vec3,
     /// Henyey–Greenstein's g (0: isotropic).
     pub g: f32,
+    /// Whether the phase function is Henyey–Greenstein's (an isotropic one has no g
+    /// to differentiate).
+    pub hg: bool,
 }
 
 /// The scene's one emitter to sample, where it is one whose sample the packet draws in
@@ -402,7 +405,7 @@ fn clear_of(m: &MediumShape, s: &Surface) -> bool {
 }
 
 /// A render's per-medium values: its albedo and the factors (a, b) by which a vertex
-/// there updates dβ (`Gradient::vertex_factors`).
+/// there updates dβ (`Gradient::vertex_factors`); and which derivatives it estimates.
 #[derive(Clone, Debug)]
 pub struct PacketSettings {
     pub albedo: Vec<Vec3>,
@@ -413,6 +416,10 @@ pub struct PacketSettings {
     /// The power tests' wrong derivative: a medium vertex's emitter sample weighed by
     /// dβ without the vertex's own albedo (`Gradient::AlbedoIgnoringNeeVertex`).
     pub nee_ignores_vertex: bool,
+    /// The medium whose extinction (σ_t; a heterogeneous one's scale) and whose
+    /// Henyey–Greenstein g are differentiated, if any (`Gradient::Medium`).
+    pub extinction: Option<u32>,
+    pub g: Option<u32>,
 }
 
 impl PacketSettings {
@@ -431,6 +438,8 @@ impl PacketSettings {
             factor_b,
             roulette_by_target: matches!(settings.gradient, Gradient::Difference { .. }),
             nee_ignores_vertex: matches!(settings.gradient, Gradient::AlbedoIgnoringNeeVertex(_)),
+            extinction: settings.gradient.extinction_medium(),
+            g: settings.gradient.g_medium(),
         }
     }
 }
@@ -530,6 +539,7 @@ fn packet_media(scene: &Scene) -> Result<Vec<PacketMedium>, String> {
         media.push(PacketMedium {
             sigma_t: m.sigma_t,
             g,
+            hg: matches!(m.phase, Phase::HenyeyGreenstein { .. }),
         });
     }
     Ok(media)

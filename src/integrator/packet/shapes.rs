@@ -194,27 +194,37 @@ pub fn surface_normal(ps: &PacketScene, k: usize, p: V3) -> V3 {
     }
 }
 
+/// A shadow ray's transmittance, and ∂ ln T in the differentiated medium's extinction
+/// (`volpath::shadow::Transmitted`): −ℓ for the length ℓ in a homogeneous one, −∫σ (an
+/// estimate) in a heterogeneous one, per channel; 0 where none is differentiated.
+pub struct Shadow {
+    pub tr: V3,
+    pub d_log: V3,
+}
+
 /// The transmittance of shadow rays from `o` along unit `d` over `dist`, the origin in
 /// medium shape `inside` (−1: empty space) and on surface `skip` (−1: none), for the
 /// lanes of `mask`: e^{−σ_t ℓ} for the length ℓ of the ray in each homogeneous medium,
 /// ratio tracking's estimate in a heterogeneous one (drawing from `rngs`), 0 where a
-/// surface or a dielectric boundary blocks it.
+/// surface or a dielectric boundary blocks it; with ∂ ln T in the extinction of medium
+/// `extinction` where it is differentiated.
 #[inline(always)]
 pub fn shadow_transmittance(
     scene: &Scene,
     ps: &PacketScene,
     (o, d, dist): (V3, V3, L),
-    inside: L,
-    skip: L,
+    (inside, skip): (L, L),
     mask: L,
+    extinction: Option<u32>,
     rngs: &mut [Pcg32],
-) -> V3 {
+) -> Shadow {
     let mut blocked = !mask;
     for k in 0..ps.surfaces.len() {
         let (hit, t) = surface_hit(ps, k, o, d, skip);
         blocked |= hit & t.cmp_lt(dist);
     }
     let mut tr = V3::splat(Vec3::ONE);
+    let mut d_log = V3::splat(Vec3::ZERO);
     for (i, m) in ps.media_shapes.iter().enumerate() {
         let span = MediumSpan::new(&m.kind, o, d);
         let from_inside = inside.cmp_eq(L::splat(i as f32));
@@ -223,20 +233,19 @@ pub fn shadow_transmittance(
             blocked |= from_inside | (span.enters & span.near.cmp_lt(dist));
             continue;
         }
+        let chosen = extinction == Some(m.medium);
         if let Some(h) = scene.media[m.medium as usize].heterogeneous.as_deref() {
             let from_outside = span.enters & span.near.cmp_lt(dist);
             let start = from_inside.blend(L::ZERO, span.near);
             let end = from_inside.blend(span.exit, span.far).min(dist);
             let through = !blocked & (from_inside | from_outside);
             if through.any() {
-                tr = tr.mul(heterogeneous::transmittance(
-                    h,
-                    o,
-                    d,
-                    (start, end),
-                    through,
-                    rngs,
-                ));
+                let seg = (start, end);
+                tr = tr.mul(heterogeneous::transmittance(h, o, d, seg, through, rngs));
+                if chosen {
+                    let depth = heterogeneous::depth_estimate(h, o, d, seg, through);
+                    d_log = d_log.sub(depth);
+                }
             }
             continue;
         }
@@ -245,7 +254,13 @@ pub fn shadow_transmittance(
         if len.cmp_gt(L::ZERO).any() {
             let sigma_t = ps.media[m.medium as usize].sigma_t;
             tr = tr.mul(transmittance_rgb(V3::splat(sigma_t), len));
+            if chosen {
+                d_log = d_log.sub(V3::all(len));
+            }
         }
     }
-    tr.select(blocked, V3::splat(Vec3::ZERO))
+    Shadow {
+        tr: tr.select(blocked, V3::splat(Vec3::ZERO)),
+        d_log,
+    }
 }

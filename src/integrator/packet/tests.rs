@@ -3,7 +3,7 @@
 //! test beside it, and the scenes it takes or refuses.
 
 use super::*;
-use crate::integrator::volpath::{self, Gradient, PathSettings};
+use crate::integrator::volpath::{self, Gradient, MediumParams, PathSettings};
 
 /// Two media spheres under a sky: a grey forward-scattering one and a chromatic
 /// backward-scattering one (σ_t of its channels within a factor 4: every channel's
@@ -233,21 +233,29 @@ fn box_rays() -> Vec<Vec3A> {
     .collect()
 }
 
-/// Mean and variance of the mean of `n` samples, per channel of radiance and second.
+/// The images a sample holds: radiance, second (the albedo's derivative or the
+/// difference), and the derivatives in the extinction and in g.
+const IMAGES: usize = 4;
+
+fn image(s: &PathSample, q: usize) -> Vec3 {
+    [s.radiance, s.second, s.d_sigma, s.d_g][q]
+}
+
+/// Mean and variance of the mean of `n` samples, per channel of each image.
 struct Moments {
-    mean: [Vec3; 2],
-    var_of_mean: [Vec3; 2],
+    mean: [Vec3; IMAGES],
+    var_of_mean: [Vec3; IMAGES],
 }
 
 fn moments(samples: &[PathSample]) -> Moments {
     let n = samples.len() as f64;
     let mut out = Moments {
-        mean: [Vec3::ZERO; 2],
-        var_of_mean: [Vec3::ZERO; 2],
+        mean: [Vec3::ZERO; IMAGES],
+        var_of_mean: [Vec3::ZERO; IMAGES],
     };
-    for q in 0..2 {
+    for q in 0..IMAGES {
         for c in 0..3 {
-            let v = |s: &PathSample| if q == 0 { s.radiance[c] } else { s.second[c] } as f64;
+            let v = |s: &PathSample| image(s, q)[c] as f64;
             let m = samples.iter().map(v).sum::<f64>() / n;
             let var = samples.iter().map(|s| (v(s) - m).powi(2)).sum::<f64>() / (n - 1.0);
             out.mean[q][c] = m as f32;
@@ -259,34 +267,53 @@ fn moments(samples: &[PathSample]) -> Moments {
 
 const N: usize = 40_000;
 
-/// `n` scalar samples along `d`.
+/// Sample `k`'s direction: `d`, or moved by up to `jitter` in each axis (alike on both
+/// sides). A grid's extinction derivative takes its point on a segment from a hash of
+/// the segment (`HeterogeneousMedium::depth_estimate`): along one fixed ray every
+/// sample's segments hash alike, and the two sides' differ in their last bits.
+fn direction(d: Vec3A, jitter: f32, k: u64) -> Vec3A {
+    if jitter == 0.0 {
+        return d;
+    }
+    let mut rng = Pcg32::new(0x6a17, k);
+    let mut u = || (2.0 * rng.next_1d() - 1.0) * jitter;
+    (d + Vec3A::new(u(), u(), u())).normalize()
+}
+
+/// `n` scalar samples along `d` (jittered by up to `jitter`: [`direction`]).
 fn scalar_samples(
     scene: &Scene,
     settings: &PathSettings,
-    d: Vec3A,
+    (d, jitter): (Vec3A, f32),
     seed: u64,
     n: usize,
 ) -> Vec<PathSample> {
     (0..n as u64)
         .map(|k| {
             let mut rng = Pcg32::new(seed, k);
+            let d = direction(d, jitter, k);
             volpath::sample(scene, settings, Vec3A::ZERO, d, f32::INFINITY, &mut rng)
         })
         .collect()
 }
 
-/// `n` packet samples along `d`, [`WIDTH`] lanes at a time.
+/// `n` packet samples along `d` (jittered: [`direction`]), [`WIDTH`] lanes at a time.
 fn packet_samples(
     scene: &Scene,
     ps: &PacketScene,
     settings: &PacketSettings,
-    d: Vec3A,
+    (d, jitter): (Vec3A, f32),
     seed: u64,
     n: usize,
 ) -> Vec<PathSample> {
     let mut out = vec![PathSample::default(); n];
     for (j, chunk) in out.chunks_mut(WIDTH).enumerate() {
-        let rays = vec![(Vec3A::ZERO, d, f32::INFINITY); chunk.len()];
+        let rays: Vec<_> = (0..chunk.len())
+            .map(|k| {
+                let d = direction(d, jitter, (j * WIDTH + k) as u64);
+                (Vec3A::ZERO, d, f32::INFINITY)
+            })
+            .collect();
         let mut rngs: Vec<Pcg32> = (0..chunk.len())
             .map(|k| Pcg32::new(seed, (j * WIDTH + k) as u64))
             .collect();
@@ -295,7 +322,7 @@ fn packet_samples(
     out
 }
 
-/// Largest |z| of the packet's means against the scalar ones, over the rays, the two
+/// Largest |z| of the packet's means against the scalar ones, over the rays, the
 /// images and the channels (z from the variances of both means).
 fn largest_z(
     scene: &Scene,
@@ -320,18 +347,19 @@ fn largest_z_against(
         scene,
         packet_scene,
         rays,
-        (gradient, packet_albedo),
+        (gradient, packet_albedo, 0.0),
         seed,
         N,
     )
 }
 
-/// [`largest_z_against`] over `n` samples a ray.
+/// [`largest_z_against`] over `n` samples a ray, each jittered by up to `jitter`
+/// ([`direction`]).
 fn largest_z_over(
     scene: &Scene,
     packet_scene: &Scene,
     rays: &[Vec3A],
-    (gradient, packet_albedo): (Gradient, Option<Vec<Vec3>>),
+    (gradient, packet_albedo, jitter): (Gradient, Option<Vec<Vec3>>, f32),
     seed: u64,
     n: usize,
 ) -> f32 {
@@ -348,16 +376,16 @@ fn largest_z_over(
     });
     let mut worst = 0f32;
     for &d in rays {
-        let a = moments(&scalar_samples(scene, &settings, d, seed, n));
+        let a = moments(&scalar_samples(scene, &settings, (d, jitter), seed, n));
         let b = moments(&packet_samples(
             packet_scene,
             &ps,
             &packet_settings,
-            d,
+            (d, jitter),
             seed + 1,
             n,
         ));
-        for q in 0..2 {
+        for q in 0..IMAGES {
             for c in 0..3 {
                 let var = a.var_of_mean[q][c] + b.var_of_mean[q][c];
                 let diff = a.mean[q][c] - b.mean[q][c];
@@ -373,11 +401,19 @@ fn largest_z_over(
     worst
 }
 
-/// |z| above which a difference counts: 6 rays × 2 images × 3 channels = 36 tests
-/// per comparison; at 4.5 a Gaussian false alarm has probability 36 · 6.8e-6 = 2.4e-4.
+/// |z| above which a difference counts: 6 rays × 4 images × 3 channels = 72 tests
+/// per comparison; at 4.5 a Gaussian false alarm has probability 72 · 6.8e-6 = 4.9e-4.
 const Z_LIMIT: f32 = 4.5;
 
-/// The packet's radiance and each second image equal the scalar integrator's in
+/// The derivatives in a medium's extinction, albedo and g, all three.
+const ALL_PARAMS: MediumParams = MediumParams {
+    albedo: true,
+    extinction: true,
+    g: true,
+};
+
+/// The packet's radiance and each derivative (the albedo's, the difference, and the
+/// extinction's, the albedo's and g's together) equal the scalar integrator's in
 /// expectation, ray by ray.
 #[test]
 fn packets_equal_scalar_paths_in_expectation() {
@@ -394,6 +430,14 @@ fn packets_equal_scalar_paths_in_expectation() {
         Gradient::Difference {
             medium: 1,
             target: Vec3::new(0.95, 0.9, 0.8),
+        },
+        Gradient::Medium {
+            medium: 0,
+            params: ALL_PARAMS,
+        },
+        Gradient::Medium {
+            medium: 1,
+            params: ALL_PARAMS,
         },
     ];
     for (i, g) in gradients.into_iter().enumerate() {
@@ -413,9 +457,16 @@ fn packets_equal_scalar_paths_in_expectation() {
                     medium: medium.min(scene.media.len() as u32 - 1),
                     target,
                 },
+                Gradient::Medium { medium, params } => Gradient::Medium {
+                    medium: medium.min(scene.media.len() as u32 - 1),
+                    params,
+                },
                 g => g,
             };
-            let z = largest_z(scene, &rays, g, None, 100 + 10 * i as u64);
+            // The cloud's rays jittered: its extinction's derivative ([`direction`]).
+            let jitter = if name == "cloud" { 2e-3 } else { 0.0 };
+            let seed = 100 + 10 * i as u64;
+            let z = largest_z_over(scene, scene, &rays, (g, None, jitter), seed, N);
             println!("{name}, {g:?}: largest |z| {z:.2}");
             assert!(z < Z_LIMIT, "{name}, {g:?}: |z| = {z} ≥ {Z_LIMIT}");
         }
@@ -512,7 +563,14 @@ fn the_comparison_detects_an_area_light_five_percent_off() {
     let off = load_xml("box_area_light_off", &off);
     let rays = box_rays();
     let lit_by_it = &rays[..rays.len() - 1];
-    let z = largest_z_over(&boxed, &off, lit_by_it, (Gradient::None, None), 600, 4 * N);
+    let z = largest_z_over(
+        &boxed,
+        &off,
+        lit_by_it,
+        (Gradient::None, None, 0.0),
+        600,
+        4 * N,
+    );
     println!("rectangle light 5% brighter: largest |z| {z:.2}");
     assert!(
         z >= Z_LIMIT,
@@ -527,7 +585,14 @@ fn the_comparison_detects_an_area_light_five_percent_off() {
     let off = load_xml("fog_off", &off);
     let mut lit_by_it = fog_rays();
     lit_by_it.remove(2);
-    let z = largest_z_over(&fog, &off, &lit_by_it, (Gradient::None, None), 650, 4 * N);
+    let z = largest_z_over(
+        &fog,
+        &off,
+        &lit_by_it,
+        (Gradient::None, None, 0.0),
+        650,
+        4 * N,
+    );
     println!("sphere light 5% brighter: largest |z| {z:.2}");
     assert!(
         z >= Z_LIMIT,
@@ -570,9 +635,21 @@ fn the_z_limit_holds_for_scalar_against_scalar() {
     for t in 0..trials {
         let mut worst = 0f32;
         for d in lit_rays() {
-            let a = moments(&scalar_samples(&scene, &settings, d, 1000 + 2 * t, N));
-            let b = moments(&scalar_samples(&scene, &settings, d, 1001 + 2 * t, N));
-            for q in 0..2 {
+            let a = moments(&scalar_samples(
+                &scene,
+                &settings,
+                (d, 0.0),
+                1000 + 2 * t,
+                N,
+            ));
+            let b = moments(&scalar_samples(
+                &scene,
+                &settings,
+                (d, 0.0),
+                1001 + 2 * t,
+                N,
+            ));
+            for q in 0..IMAGES {
                 for c in 0..3 {
                     let var = a.var_of_mean[q][c] + b.var_of_mean[q][c];
                     if var > 0.0 {
@@ -612,7 +689,7 @@ fn a_white_furnace_gives_back_the_sky() {
         gradient: Gradient::None,
     });
     let d = Vec3A::new(0.05, -0.1, -1.0).normalize();
-    let samples = packet_samples(&scene, &ps, &settings, d, 7, N);
+    let samples = packet_samples(&scene, &ps, &settings, (d, 0.0), 7, N);
     let m = moments(&samples);
     let z = ((m.mean[0] - Vec3::ONE).abs() / m.var_of_mean[0].max(Vec3::splat(1e-30)).powf(0.5))
         .max_element();
@@ -720,68 +797,4 @@ fn the_packet_takes_media_spheres_diffuse_shapes_and_delta_lights_only() {
             Err(e) => assert!(e.contains(why), "{name}: {e}"),
         }
     }
-}
-
-/// The sphere light's cone in lanes is the scalar `Sphere::sample_cone`: the same
-/// direction, distance and pdf for the same draws, from near (a wide cone) and far (a
-/// cone under the small-angle threshold), and the points inside the sphere handed to
-/// the scalar code.
-#[test]
-fn the_sphere_cone_in_lanes_is_the_scalar_one() {
-    use crate::geometry::shape::Sphere;
-    let sphere = Sphere {
-        center: Vec3A::new(0.3, -0.2, 1.0),
-        radius: 0.5,
-        flip_normals: false,
-        axes: glam::Mat3A::IDENTITY,
-    };
-    let mut rng = Pcg32::new(7, 1);
-    for far in [1.2f32, 40.0] {
-        for _ in 0..200 {
-            let u1 = L::from(std::array::from_fn::<f32, 8, _>(|_| rng.next_1d()));
-            let u2 = L::from(std::array::from_fn::<f32, 8, _>(|_| rng.next_1d()));
-            let points: [Vec3A; 8] = std::array::from_fn(|_| {
-                let dir = Vec3A::new(
-                    rng.next_1d() - 0.5,
-                    rng.next_1d() - 0.5,
-                    rng.next_1d() - 0.5,
-                );
-                sphere.center + dir.normalize_or(Vec3A::X) * far
-            });
-            let p = V3::from_fn(|k| Vec3::from(points[k]));
-            let c = scatter::sample_cone(Vec3::from(sphere.center), sphere.radius, p, u1, u2);
-            let (ua, ub) = (u1.to_array(), u2.to_array());
-            for k in 0..8 {
-                let s = sphere
-                    .sample_cone(points[k], glam::Vec2::new(ua[k], ub[k]))
-                    .expect("outside");
-                assert!(c.ok.move_mask() >> k & 1 == 1 && c.inside.move_mask() >> k & 1 == 0);
-                let d = c.d.lane_a(k);
-                assert!((d - s.d).length() < 1e-4, "far {far}: {d} against {}", s.d);
-                let dist = c.dist.to_array()[k];
-                assert!(
-                    (dist - s.dist).abs() <= 1e-4 * s.dist,
-                    "{dist} against {}",
-                    s.dist
-                );
-                let pdf = c.pdf.to_array()[k];
-                assert!(
-                    (pdf - s.pdf).abs() <= 1e-5 * s.pdf,
-                    "{pdf} against {}",
-                    s.pdf
-                );
-            }
-        }
-    }
-    let inside_points =
-        V3::from_fn(|k| Vec3::from(sphere.center) + Vec3::X * (sphere.radius * k as f32 / 8.0));
-    let c = scatter::sample_cone(
-        Vec3::from(sphere.center),
-        sphere.radius,
-        inside_points,
-        L::splat(0.3),
-        L::splat(0.6),
-    );
-    assert_eq!(c.inside.move_mask(), 0xff);
-    assert_eq!(c.ok.move_mask(), 0);
 }

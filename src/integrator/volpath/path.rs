@@ -16,7 +16,10 @@ use crate::integrator::emitters::{sample_light_at_surface, skip_emitters};
 use crate::integrator::roulette::continue_probability;
 use crate::integrator::sample::PathSample;
 use crate::medium::heterogeneous::HeterogeneousMedium;
-use crate::medium::{collision_weight, expected_pass_weight, pass_weight, HomogeneousMedium};
+use crate::medium::{
+    collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight,
+    HomogeneousMedium,
+};
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::{Scene, SurfaceInteraction};
 
@@ -395,7 +398,10 @@ impl PathState {
                 self.d_sigma *= w * albedo;
                 if chosen {
                     // ∂(σ_t T)/∂σ_t = T (1 − σ_t t), over the same (detached) p_hero.
-                    let dw = tr * (Vec3::ONE - m.sigma_t * flight.t) / (m.sigma_t[hero] * tr[hero]);
+                    let (sigma, sigma_hero) = (m.sigma_t.into(), m.sigma_t[hero]);
+                    let dw: Vec3 =
+                        collision_weight_d_sigma(tr.into(), sigma, flight.t, sigma_hero, tr[hero])
+                            .into();
                     self.d_sigma += self.beta * dw * albedo;
                 }
                 self.d_g *= w * albedo;
