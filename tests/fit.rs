@@ -64,13 +64,27 @@ fn thin_cube_fit_recovers_mitsuba_medium() {
     );
     let absorption = s * (1.0 - a) / (2.5 * 0.2);
     let reduced = s * a * (1.0 - g) / (2.5 * 0.8 * 0.5);
-    assert!((absorption - 1.0).abs() < 0.05, "absorption off by {absorption}");
-    assert!((reduced - 1.0).abs() < 0.05, "reduced scattering off by {reduced}");
+    assert!(
+        (absorption - 1.0).abs() < 0.05,
+        "absorption off by {absorption}"
+    );
+    assert!(
+        (reduced - 1.0).abs() < 0.05,
+        "reduced scattering off by {reduced}"
+    );
     let within = |i: usize, v: f64, truth: f64, tol: f64| {
         (v - truth).abs() <= tol || (r.ci[i][0] as f64 <= truth && truth <= r.ci[i][1] as f64)
     };
-    assert!(within(0, s, 2.5, 0.125), "sigma_t {s}, interval {:?}", r.ci[0]);
-    assert!(within(1, a, 0.8, 0.02), "albedo {a}, interval {:?}", r.ci[1]);
+    assert!(
+        within(0, s, 2.5, 0.125),
+        "sigma_t {s}, interval {:?}",
+        r.ci[0]
+    );
+    assert!(
+        within(1, a, 0.8, 0.02),
+        "albedo {a}, interval {:?}",
+        r.ci[1]
+    );
     assert!(within(2, g, 0.5, 0.05), "g {g}, interval {:?}", r.ci[2]);
     // Power: the intervals exclude the start (the fit moved, and says how far).
     assert!(!(r.ci[0][0] <= 1.2 && 1.2 <= r.ci[0][1]), "{:?}", r.ci[0]);
@@ -96,5 +110,9 @@ fn a_parameter_the_images_cannot_fix_is_reported_undetermined() {
             r.ci[i]
         );
     }
-    assert!(r.ci[2][0].is_finite() && r.ci[2][1].is_finite(), "albedo {:?}", r.ci[2]);
+    assert!(
+        r.ci[2][0].is_finite() && r.ci[2][1].is_finite(),
+        "albedo {:?}",
+        r.ci[2]
+    );
 }

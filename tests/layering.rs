@@ -26,6 +26,7 @@ const LAYERS: &[&str] = &[
     "scene",      // the render state, built from plain objects
     "load",       // SceneDescription → Scene (one file per plugin kind)
     "integrator", // path, volpath, the render driver
+    "fit",        // a medium's parameters from images
     "regularize", // the paper's method
     "report",     // mediareg table
 ];

@@ -205,7 +205,8 @@ pub fn fit(
         || unknowns.iter().enumerate().all(|(i, u)| {
             let drift =
                 (u.from_x(mean_of(&tail[half..], i)) - u.from_x(mean_of(&tail[..half], i))).abs();
-            !(drift > 0.5 * (ci[i][1] - ci[i][0]))
+            let half_width = 0.5 * (ci[i][1] - ci[i][0]);
+            drift <= half_width || drift.is_nan() || half_width.is_nan()
         });
     Ok(FitResult {
         unknowns,

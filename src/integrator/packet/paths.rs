@@ -10,7 +10,7 @@ use super::boundary::boundary_sample;
 use super::derivatives::{all_lanes, Derivatives};
 use super::emitters::sample_emitters;
 use super::lanes::{draw_1d, draw_2d, mask_of, L, V3, WIDTH};
-use super::shapes::{shadow_transmittance, surface_hit, MediumSpan};
+use super::shapes::{shadow_transmittance, surface_hit, MediumSpan, Shadow};
 use super::{
     dielectric_of, emitting, gather_media, heterogeneous, medium_normals, offset_magnitude,
     scatter, surface_emission, surface_lanes, MediumLanes, PacketScene, PacketSettings,
@@ -26,6 +26,15 @@ use crate::medium::{
 };
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
+
+/// A shadow ray's ∂ ln T, or zero for the power tests' estimator without it.
+#[inline(always)]
+fn shadow_score(ctx: &Context, shadow: &Shadow) -> V3 {
+    match ctx.settings.without_shadow_term {
+        true => V3::splat(Vec3::ZERO),
+        false => shadow.d_log,
+    }
+}
 
 /// "None" for a lane's shape index (as f32).
 const NONE: f32 = -1.0;
@@ -526,8 +535,9 @@ impl PacketPaths {
                 } else {
                     L::ZERO
                 };
+                let d_log = shadow_score(ctx, &shadow);
                 self.derivs
-                    .gather_light(es.some, x, self.beta, (shadow.d_log, g_score));
+                    .gather_light(es.some, x, self.beta, (d_log, g_score));
             }
         }
         // ---- Phase function sampling ----
@@ -684,8 +694,9 @@ impl PacketPaths {
                 self.d_result = self
                     .d_result
                     .select(lit, self.d_result.add(self.d_beta.mul(x)));
+                let d_log = shadow_score(ctx, &shadow);
                 self.derivs
-                    .gather_light(lit, x, self.beta, (shadow.d_log, L::ZERO));
+                    .gather_light(lit, x, self.beta, (d_log, L::ZERO));
             }
         }
         // The scalar path draws the BSDF's 1-D sample (the lobe's choice) before the 2-D

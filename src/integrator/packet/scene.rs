@@ -420,6 +420,9 @@ pub struct PacketSettings {
     /// Henyey–Greenstein g are differentiated, if any (`Gradient::Medium`).
     pub extinction: Option<u32>,
     pub g: Option<u32>,
+    /// The power tests' wrong derivative: the shadow rays' ∂ ln T left out
+    /// (`MediumParams::without_shadow_term`).
+    pub without_shadow_term: bool,
 }
 
 impl PacketSettings {
@@ -440,6 +443,10 @@ impl PacketSettings {
             nee_ignores_vertex: matches!(settings.gradient, Gradient::AlbedoIgnoringNeeVertex(_)),
             extinction: settings.gradient.extinction_medium(),
             g: settings.gradient.g_medium(),
+            without_shadow_term: matches!(
+                settings.gradient,
+                Gradient::Medium { params, .. } if params.without_shadow_term
+            ),
         }
     }
 }

@@ -410,6 +410,7 @@ const ALL_PARAMS: MediumParams = MediumParams {
     albedo: true,
     extinction: true,
     g: true,
+    without_shadow_term: false,
 };
 
 /// The packet's radiance and each derivative (the albedo's, the difference, and the
