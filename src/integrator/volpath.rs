@@ -257,6 +257,16 @@ pub struct MediumParams {
     pub without_shadow_term: bool,
 }
 
+impl MediumParams {
+    /// Every parameter: the albedo, the extinction and g.
+    pub const ALL: MediumParams = MediumParams {
+        albedo: true,
+        extinction: true,
+        g: true,
+        without_shadow_term: false,
+    };
+}
+
 impl Gradient {
     fn medium(self) -> Option<u32> {
         match self {

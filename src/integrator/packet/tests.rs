@@ -406,12 +406,7 @@ fn largest_z_over(
 const Z_LIMIT: f32 = 4.5;
 
 /// The derivatives in a medium's extinction, albedo and g, all three.
-const ALL_PARAMS: MediumParams = MediumParams {
-    albedo: true,
-    extinction: true,
-    g: true,
-    without_shadow_term: false,
-};
+const ALL_PARAMS: MediumParams = MediumParams::ALL;
 
 /// The packet's radiance and each derivative (the albedo's, the difference, and the
 /// extinction's, the albedo's and g's together) equal the scalar integrator's in
