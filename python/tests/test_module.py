@@ -83,6 +83,18 @@ def test_medium_derivatives_equal_cli_bit_for_bit(cli, tmp_path):
         mediareg.render(s, spp=1, gradient="sigma_t,g")
 
 
+def test_fit_moves_toward_the_target():
+    target = mediareg.read_exr(ROOT / "tests/fixtures/fit/thin_cube_mitsuba.exr")
+    r = mediareg.fit(scene("medium_cube"), [target], spp=8, iterations=30, res=64,
+                     max_depth=64, sigma_t=1.2, albedo=0.6, g=0)
+    assert sorted(r) == ["ci", "converged", "iterations", "loss", "params", "seconds"]
+    assert sorted(r["params"]) == ["albedo", "g", "sigma_t"] and r["iterations"] == 30
+    # Mitsuba rendered sigma_t 2.5, albedo 0.8, g 0.5; the start was 1.2, 0.6, 0.
+    assert abs(r["params"]["sigma_t"] - 2.5) < 0.5 and abs(r["params"]["albedo"] - 0.8) < 0.1
+    with pytest.raises(ValueError, match="density"):
+        mediareg.fit(scene("medium_cube"), [target], params=["density"], res=64)
+
+
 def cli_error(cli, *args):
     r = cli(*args)
     assert r.returncode != 0
