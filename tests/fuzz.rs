@@ -15,7 +15,8 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use mediareg::geometry::mesh::{read_obj, read_ply};
+use mediareg::geometry::mesh::read_obj;
+use mediareg::geometry::ply::read_ply;
 use mediareg::load::build_scene;
 use mediareg::BuildOverrides;
 use proptest::prelude::*;

@@ -195,11 +195,17 @@ impl Accel {
     /// (`geometry::offset_magnitude`) is far larger than the difference. Else both
     /// come from the copy the hit test has just read.
     #[inline]
-    pub fn triangle_surface(&self, o: Vec3A, d: Vec3A, hit: &Hit) -> (Vec3A, Vec3A) {
+    pub fn triangle_surface(
+        &self,
+        shapes: &[Geometry],
+        o: Vec3A,
+        d: Vec3A,
+        hit: &Hit,
+    ) -> (Vec3A, Vec3A) {
         if hit.ng != [0.0; 3] {
             return (o + d * hit.t, Vec3A::from_array(hit.ng).normalize_or_zero());
         }
-        let t = &self.prims.triangles[hit.leaf as usize];
+        let t = self.prims.triangle(shapes, hit.leaf as usize);
         (
             t.p0 + t.e1 * hit.u + t.e2 * hit.v,
             t.e1.cross(t.e2).normalize_or_zero(),

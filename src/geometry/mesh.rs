@@ -1,4 +1,4 @@
-//! Triangle meshes: PLY (ply-rs) and OBJ (tobj) readers, Mitsuba's `cube`, vertex
+//! Triangle meshes: the OBJ reader (tobj; PLY's is `super::ply`), Mitsuba's `cube`, vertex
 //! normals, ray–triangle intersection and uniform area sampling.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -40,7 +40,7 @@ pub struct RawMesh {
     pub warnings: Vec<String>,
 }
 
-fn mesh_error(path: &Path, msg: impl Into<String>) -> SceneError {
+pub(super) fn mesh_error(path: &Path, msg: impl Into<String>) -> SceneError {
     SceneError::new(Some(Loc::file_only(path)), msg.into())
 }
 
@@ -53,183 +53,6 @@ fn guarded<T>(path: &Path, what: &str, f: impl FnOnce() -> Result<T>) -> Result<
             format!("the {what} reader failed on this file: it is malformed or truncated"),
         )),
     }
-}
-
-/// Element counts (and the format's version numbers) in the header must be numbers
-/// below 2³²: ply-rs panics on one that overflows u64, and no mesh this renderer can
-/// hold has more.
-fn check_ply_counts(path: &Path, bytes: &[u8]) -> Result<()> {
-    use std::io::BufRead;
-    let mut line = Vec::new();
-    let mut reader = bytes;
-    for number in 1..=10_000 {
-        line.clear();
-        match reader.read_until(b'\n', &mut line) {
-            Ok(0) | Err(_) => break,
-            Ok(_) => {}
-        }
-        let text = String::from_utf8_lossy(&line);
-        let words: Vec<&str> = text.split_whitespace().collect();
-        // ply-rs converts a run of digits as soon as its grammar matches it, before it
-        // knows whether the rest of the line parses.
-        let overflows = |w: &str| {
-            let digits: String = w.chars().take_while(|c| c.is_ascii_digit()).collect();
-            !digits.is_empty() && digits.parse::<u32>().is_err()
-        };
-        match words[..] {
-            ["end_header"] => break,
-            ["element", name, count, ..] if overflows(count) => {
-                return Err(mesh_error(
-                    path,
-                    format!("PLY header line {number}: element \"{name}\" has count \"{count}\"; expected a number below 2^32"),
-                ));
-            }
-            ["format", _, version, ..] if version.split('.').any(overflows) => {
-                return Err(mesh_error(
-                    path,
-                    format!("PLY header line {number}: format version \"{version}\" is not a version number such as 1.0"),
-                ));
-            }
-            _ => {}
-        }
-    }
-    Ok(())
-}
-
-/// Reads a PLY file (ASCII or binary): vertex x, y, z and optional nx, ny, nz; faces from
-/// `vertex_indices` (or `vertex_index`), polygons fan-triangulated.
-pub fn read_ply(path: &Path) -> Result<RawMesh> {
-    use ply_rs::parser::Parser;
-    use ply_rs::ply::{DefaultElement, Property};
-    // One read of the file serves the header check, the parser and the trailing-data check.
-    let bytes =
-        std::fs::read(path).map_err(|e| mesh_error(path, format!("cannot open PLY file: {e}")))?;
-    check_ply_counts(path, &bytes)?;
-    let (payload, trailing) = guarded(path, "PLY", || {
-        let mut reader = bytes.as_slice();
-        // Header and payload from one reader (read_ply would buffer past the payload).
-        let parser = Parser::<DefaultElement>::new();
-        let payload = parser
-            .read_header(&mut reader)
-            .and_then(|header| parser.read_payload(&mut reader, &header))
-            .map_err(|e| {
-                mesh_error(
-                    path,
-                    format!(
-                        "cannot parse PLY file: {e} (the data ends before the element counts \
-                         its header declares, or is not in the header's format: ascii vs binary)"
-                    ),
-                )
-            })?;
-        // Data past the declared elements: Mitsuba ignores it, and so does this reader,
-        // but a header count that is too small is worth a word.
-        Ok((payload, reader.iter().any(|b| !b.is_ascii_whitespace())))
-    })?;
-
-    let scalar = |p: &Property| -> Option<f64> {
-        Some(match p {
-            Property::Char(v) => *v as f64,
-            Property::UChar(v) => *v as f64,
-            Property::Short(v) => *v as f64,
-            Property::UShort(v) => *v as f64,
-            Property::Int(v) => *v as f64,
-            Property::UInt(v) => *v as f64,
-            Property::Float(v) => *v as f64,
-            Property::Double(v) => *v,
-            _ => return None,
-        })
-    };
-    let list = |p: &Property| -> Option<Vec<i64>> {
-        Some(match p {
-            Property::ListChar(v) => v.iter().map(|&x| x as i64).collect(),
-            Property::ListUChar(v) => v.iter().map(|&x| x as i64).collect(),
-            Property::ListShort(v) => v.iter().map(|&x| x as i64).collect(),
-            Property::ListUShort(v) => v.iter().map(|&x| x as i64).collect(),
-            Property::ListInt(v) => v.iter().map(|&x| x as i64).collect(),
-            Property::ListUInt(v) => v.iter().map(|&x| x as i64).collect(),
-            _ => return None,
-        })
-    };
-
-    let vertices = payload
-        .get("vertex")
-        .ok_or_else(|| mesh_error(path, "PLY file has no \"vertex\" element"))?;
-    let mut positions = Vec::with_capacity(vertices.len());
-    let mut normals = Vec::new();
-    let has_normals = vertices
-        .first()
-        .is_some_and(|v| v.contains_key("nx") && v.contains_key("ny") && v.contains_key("nz"));
-    // Texture coordinates under any of the names Mitsuba's PLY reader accepts.
-    let uv_names = [
-        ("u", "v"),
-        ("s", "t"),
-        ("texture_u", "texture_v"),
-        ("texture_s", "texture_t"),
-    ]
-    .into_iter()
-    .find(|(a, b)| {
-        vertices
-            .first()
-            .is_some_and(|v| v.contains_key(*a) && v.contains_key(*b))
-    });
-    let mut uvs = Vec::new();
-    for (i, v) in vertices.iter().enumerate() {
-        let get = |k: &str| v.get(k).and_then(scalar);
-        if let Some((a, b)) = uv_names {
-            let (Some(u), Some(w)) = (get(a), get(b)) else {
-                return Err(mesh_error(
-                    path,
-                    format!("PLY vertex {i} lacks numeric {a}, {b}"),
-                ));
-            };
-            uvs.push(Vec2::new(u as f32, w as f32));
-        }
-        let (Some(x), Some(y), Some(z)) = (get("x"), get("y"), get("z")) else {
-            return Err(mesh_error(
-                path,
-                format!("PLY vertex {i} lacks numeric x, y, z"),
-            ));
-        };
-        positions.push(Vec3A::new(x as f32, y as f32, z as f32));
-        if has_normals {
-            let (Some(nx), Some(ny), Some(nz)) = (get("nx"), get("ny"), get("nz")) else {
-                return Err(mesh_error(
-                    path,
-                    format!("PLY vertex {i} lacks numeric nx, ny, nz"),
-                ));
-            };
-            normals.push(Vec3A::new(nx as f32, ny as f32, nz as f32));
-        }
-    }
-    let faces = payload
-        .get("face")
-        .ok_or_else(|| mesh_error(path, "PLY file has no \"face\" element"))?;
-    let mut polys = Vec::with_capacity(faces.len());
-    for (i, f) in faces.iter().enumerate() {
-        let idx = f
-            .get("vertex_indices")
-            .or_else(|| f.get("vertex_index"))
-            .and_then(list)
-            .ok_or_else(|| mesh_error(path, format!("PLY face {i} has no vertex_indices list")))?;
-        polys.push(idx);
-    }
-    let triangles = triangulate(path, &polys, positions.len())?;
-    let mut warnings = Vec::new();
-    if trailing {
-        warnings.push(format!(
-            "{}: data after the {} vertices and {} faces the header declares is ignored (as Mitsuba does); is a count in the header too small?",
-            path.display(),
-            positions.len(),
-            polys.len()
-        ));
-    }
-    Ok(RawMesh {
-        positions,
-        normals: has_normals.then_some(normals),
-        triangles,
-        uvs: uv_names.map(|_| uvs),
-        warnings,
-    })
 }
 
 /// Reads a Wavefront OBJ file (positions, optional normals; faces fan-triangulated).
@@ -247,38 +70,52 @@ pub fn read_obj(path: &Path) -> Result<RawMesh> {
         tobj::load_obj(path, &opts)
             .map_err(|e| mesh_error(path, format!("cannot parse OBJ file: {e}")))
     })?;
-    let mut positions = Vec::new();
+    let n_vertices: usize = models.iter().map(|m| m.mesh.positions.len() / 3).sum();
+    let n_indices: usize = models.iter().map(|m| m.mesh.indices.len()).sum();
+    let mut positions = Vec::with_capacity(n_vertices);
     let mut normals = Vec::new();
     let mut all_have_normals = true;
     let mut uvs = Vec::new();
     let mut all_have_uvs = true;
-    let mut polys = Vec::new();
+    let mut faces = Triangulator::new(n_vertices as u64);
+    faces.triangles.reserve_exact(n_indices / 3);
+    let mut poly = Vec::with_capacity(3);
     for m in &models {
         let mesh = &m.mesh;
         let base = positions.len() as i64;
         let nv = mesh.positions.len() / 3;
-        for i in 0..nv {
-            let p = &mesh.positions[3 * i..3 * i + 3];
-            positions.push(Vec3A::new(p[0], p[1], p[2]));
-        }
-        if mesh.normals.len() == mesh.positions.len() {
-            for i in 0..nv {
-                let n = &mesh.normals[3 * i..3 * i + 3];
-                normals.push(Vec3A::new(n[0], n[1], n[2]));
-            }
+        positions.extend(
+            mesh.positions
+                .chunks_exact(3)
+                .map(|p| Vec3A::new(p[0], p[1], p[2])),
+        );
+        if all_have_normals && mesh.normals.len() == mesh.positions.len() {
+            normals.reserve_exact(n_vertices);
+            normals.extend(
+                mesh.normals
+                    .chunks_exact(3)
+                    .map(|n| Vec3A::new(n[0], n[1], n[2])),
+            );
         } else {
             all_have_normals = false;
+            normals = Vec::new();
         }
-        if mesh.texcoords.len() == 2 * nv {
+        if all_have_uvs && mesh.texcoords.len() == 2 * nv {
+            uvs.reserve_exact(n_vertices);
             uvs.extend(mesh.texcoords.chunks(2).map(|t| Vec2::new(t[0], t[1])));
         } else {
             all_have_uvs = false;
+            uvs = Vec::new();
         }
         for tri in mesh.indices.chunks(3) {
-            polys.push(tri.iter().map(|&i| i as i64 + base).collect::<Vec<_>>());
+            poly.clear();
+            poly.extend(tri.iter().map(|&i| i as i64 + base));
+            faces.add(&poly);
         }
     }
-    let triangles = triangulate(path, &polys, positions.len())?;
+    // tobj's copy goes before the mesh is built from this one.
+    drop(models);
+    let triangles = faces.finish(path)?;
     Ok(RawMesh {
         positions,
         normals: (all_have_normals && !normals.is_empty()).then_some(normals),
@@ -288,34 +125,62 @@ pub fn read_obj(path: &Path) -> Result<RawMesh> {
     })
 }
 
-/// Checks indices and fan-triangulates polygons.
-fn triangulate(path: &Path, polys: &[Vec<i64>], n_vertices: usize) -> Result<Vec<[u32; 3]>> {
-    let mut tris = Vec::with_capacity(polys.len());
-    for (i, poly) in polys.iter().enumerate() {
-        if poly.len() < 3 {
-            return Err(mesh_error(
-                path,
-                format!("face {i} has {} vertices (at least 3 needed)", poly.len()),
-            ));
+/// Checks faces' vertex indices and fan-triangulates them as a reader hands them over;
+/// the first bad face is the error [`Triangulator::finish`] reports.
+pub(super) struct Triangulator {
+    pub triangles: Vec<[u32; 3]>,
+    n_vertices: u64,
+    faces: usize,
+    error: Option<String>,
+}
+
+impl Triangulator {
+    pub fn new(n_vertices: u64) -> Self {
+        Triangulator {
+            triangles: Vec::new(),
+            n_vertices,
+            faces: 0,
+            error: None,
         }
-        for &v in poly {
-            if v < 0 || v as usize >= n_vertices {
-                return Err(mesh_error(
-                    path,
-                    format!(
-                        "face {i} refers to vertex {v}, but the mesh has {n_vertices} vertices"
-                    ),
-                ));
-            }
+    }
+
+    /// Adds face number `self.faces`, a polygon of vertex indices.
+    #[inline]
+    pub fn add(&mut self, poly: &[i64]) {
+        let i = self.faces;
+        self.faces += 1;
+        if self.error.is_some() {
+            return;
+        }
+        if poly.len() < 3 {
+            self.error = Some(format!(
+                "face {i} has {} vertices (at least 3 needed)",
+                poly.len()
+            ));
+            return;
+        }
+        let n = self.n_vertices;
+        if let Some(v) = poly.iter().find(|&&v| v < 0 || v as u64 >= n) {
+            self.error = Some(format!(
+                "face {i} refers to vertex {v}, but the mesh has {n} vertices"
+            ));
+            return;
         }
         for k in 1..poly.len() - 1 {
-            tris.push([poly[0] as u32, poly[k] as u32, poly[k + 1] as u32]);
+            self.triangles
+                .push([poly[0] as u32, poly[k] as u32, poly[k + 1] as u32]);
         }
     }
-    if tris.is_empty() {
-        return Err(mesh_error(path, "mesh has no faces"));
+
+    pub fn finish(self, path: &Path) -> Result<Vec<[u32; 3]>> {
+        if let Some(e) = self.error {
+            return Err(mesh_error(path, e));
+        }
+        if self.triangles.is_empty() {
+            return Err(mesh_error(path, "mesh has no faces"));
+        }
+        Ok(self.triangles)
     }
-    Ok(tris)
 }
 
 /// Mitsuba 3's `cube`: [-1, 1]³, 6 faces × 2 triangles, 24 vertices with face normals.
@@ -366,17 +231,17 @@ impl TriangleMesh {
         flip_normals: bool,
         path: &Path,
     ) -> Result<Self> {
-        let positions: Vec<Vec3A> = raw
-            .positions
-            .iter()
-            .map(|&p| to_world.transform_point3a(p))
-            .collect();
+        // In place: the file's arrays become the mesh's, with no second copy.
+        let mut raw = raw;
+        let mut positions = std::mem::take(&mut raw.positions);
+        for p in &mut positions {
+            *p = to_world.transform_point3a(*p);
+        }
         if positions.iter().any(|p| !p.is_finite()) {
             return Err(mesh_error(path, "mesh has a non-finite vertex position"));
         }
         // A mirroring transform would turn the geometric normals inward: Mitsuba reverses
         // the winding then, so they keep pointing where the file's winding said.
-        let mut raw = raw;
         if to_world.determinant() < 0.0 {
             for t in &mut raw.triangles {
                 t.swap(1, 2);
@@ -386,11 +251,13 @@ impl TriangleMesh {
             None
         } else {
             let inv_t = to_world.inverse().transpose();
-            Some(match raw.normals {
-                Some(ns) => ns
-                    .iter()
-                    .map(|&n| inv_t.transform_vector3a(n).normalize_or_zero())
-                    .collect(),
+            Some(match raw.normals.take() {
+                Some(mut ns) => {
+                    for n in &mut ns {
+                        *n = inv_t.transform_vector3a(*n).normalize_or_zero();
+                    }
+                    ns
+                }
                 None => vertex_normals(&positions, &raw.triangles),
             })
         };
@@ -575,28 +442,5 @@ mod tests {
         let mirror = Mat4::from_scale(glam::Vec3::new(-1.0, 1.0, 1.0));
         let m = TriangleMesh::new(raw, &mirror, false, false, Path::new("tri")).unwrap();
         assert!(m.normals.is_none(), "{:?}", m.normals);
-    }
-
-    /// PLY texture coordinates are read under Mitsuba's names (here `s`, `t`), unflipped.
-    #[test]
-    fn ply_texture_coordinates() {
-        let dir = std::env::temp_dir().join(format!("mediareg_ply_uv_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("tri.ply");
-        std::fs::write(
-            &path,
-            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty float s\nproperty float t\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0 0.1 0.2\n1 0 0 0.9 0.2\n0 1 0 0.1 0.8\n3 0 1 2\n",
-        )
-        .unwrap();
-        let m = read_ply(&path).unwrap();
-        assert_eq!(
-            m.uvs,
-            Some(vec![
-                Vec2::new(0.1, 0.2),
-                Vec2::new(0.9, 0.2),
-                Vec2::new(0.1, 0.8)
-            ])
-        );
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -5,6 +5,7 @@ pub mod clearance;
 pub mod convex;
 pub mod cuboid;
 pub mod mesh;
+pub mod ply;
 pub mod serialized;
 pub mod shape;
 

@@ -208,6 +208,8 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         "integrator, sensor, shape, emitter, bsdf, medium, phase, texture, sampler, film, rfilter",
     )?;
     b.warnings.append(&mut desc.unread_legacy.borrow_mut());
+    // The mesh files' copies go before the accelerator is built, not after.
+    b.meshes = HashMap::new();
 
     Ok(Scene::new(SceneParts {
         geometries: b.geometries,

@@ -256,7 +256,7 @@ impl Scene {
                     && info.emitter.is_none()
                     && matches!(self.bsdfs[info.bsdf as usize], Bsdf::Null) =>
             {
-                let (p, n) = self.accel.triangle_surface(o, d, hit);
+                let (p, n) = self.accel.triangle_surface(&self.geometries, o, d, hit);
                 let n = if m.flip_normals { -n } else { n };
                 (p, n, n, Vec2::ZERO)
             }

@@ -15,7 +15,6 @@ use super::primitive::{PrimRef, Primitives, ANALYTIC};
 use super::triangle::LeafTriangle;
 use super::{Accel, Caster};
 use crate::geometry::cuboid::Cuboid;
-use crate::geometry::mesh::TriangleMesh;
 use crate::geometry::shape::Geometry;
 use crate::geometry::Bounds;
 
@@ -68,9 +67,21 @@ impl Accel {
         // Few primitives in all are tested one by one (see BRUTE_FORCE_PRIMS), in the
         // caster's primitive list; else few analytic shapes are kept out of the BVH.
         let mixed = n_analytic + n_triangles <= BRUTE_FORCE_PRIMS || n_analytic > SEPARATE_ANALYTIC;
+        let n_prims = n_triangles + if mixed { n_analytic } else { 0 };
+        // Embree builds its own BVH from the meshes, first: the primitive list is not
+        // needed for it, and is not held during its build (the load's peak). The
+        // primitives stay in input order then. (Above the threshold, the triangles are
+        // never tested one by one.)
+        const _: () = assert!(EMBREE_MIN_TRIANGLES > BRUTE_FORCE_PRIMS);
+        let embree_wanted = backend == Backend::Embree && !mixed && n_prims >= EMBREE_MIN_TRIANGLES;
+        let build = || build_embree(shapes, &cuboids, filtered);
+        let (embree, warning) = match embree_wanted.then(build) {
+            Some(Ok(e)) => (Some(e), None),
+            Some(Err(e)) => (None, Some(format!("{e}; rays are cast with obvhs instead"))),
+            None => (None, None),
+        };
         let mut analytic = Vec::new();
-        let mut prims = Vec::new();
-        let mut aabbs = Vec::new();
+        let mut prims = Vec::with_capacity(n_prims);
         let mut bounds = Bounds::EMPTY;
         for (si, g) in shapes.iter().enumerate() {
             match g {
@@ -84,10 +95,6 @@ impl Accel {
                         prims.push(PrimRef {
                             shape: si as u32,
                             index: ti,
-                        });
-                        aabbs.push(Aabb {
-                            min: b.min,
-                            max: b.max,
                         });
                         bounds = bounds.union(&b);
                     }
@@ -103,29 +110,17 @@ impl Accel {
                         shape: si as u32,
                         index: ANALYTIC,
                     });
-                    aabbs.push(Aabb {
-                        min: b.min,
-                        max: b.max,
-                    });
                 }
             }
         }
-        // Embree builds its own BVH (from the meshes, below): prims stay in input order.
-        // (Above the threshold, the triangles are never tested one by one.)
-        const _: () = assert!(EMBREE_MIN_TRIANGLES > BRUTE_FORCE_PRIMS);
-        let embree_wanted =
-            backend == Backend::Embree && !mixed && prims.len() >= EMBREE_MIN_TRIANGLES;
-        let build = || build_embree(shapes, &prims, filtered);
-        let (embree, warning) = match embree_wanted.then(build) {
-            Some(Ok(e)) => (Some(e), None),
-            Some(Err(e)) => (None, Some(format!("{e}; rays are cast with obvhs instead"))),
-            None => (None, None),
-        };
         // obvhs's BVH, unless Embree traverses or the primitives are few enough to be
         // tested one by one (in input order). Its leaf order is the primitives' order,
         // for triangles in lanes too (the first of two hits at one distance wins).
-        let cwbvh =
-            (embree.is_none() && prims.len() > BRUTE_FORCE_PRIMS).then(|| bvh::build(&aabbs));
+        // The boxes only while obvhs builds (Embree boxes the triangles itself).
+        let cwbvh = (embree.is_none() && prims.len() > BRUTE_FORCE_PRIMS).then(|| {
+            let aabbs: Vec<Aabb> = prims.iter().map(|p| prim_aabb(shapes, p)).collect();
+            bvh::build(&aabbs)
+        });
         if let Some(b) = &cwbvh {
             prims = b
                 .primitive_indices
@@ -133,21 +128,34 @@ impl Accel {
                 .map(|&i| prims[i as usize])
                 .collect();
         }
-        let mut triangles: Vec<LeafTriangle> = prims
+        let cuboid_triangles: usize = cuboids
             .iter()
-            .map(|p| match shapes[p.shape as usize] {
-                Geometry::Mesh(m) if p.index != ANALYTIC => leaf_triangle(m, p.index),
-                _ => LeafTriangle {
-                    p0: Vec3A::ZERO,
-                    e1: Vec3A::ZERO,
-                    e2: Vec3A::ZERO,
-                },
+            .map(|c| match shapes[c.shape as usize] {
+                Geometry::Mesh(m) => m.triangles.len(),
+                _ => 0,
             })
-            .collect();
+            .sum();
+        // Embree reads its own copy of the meshes: the hit tests' copy of their triangles
+        // (48 bytes each) would only take memory (see `Primitives::unstored`).
+        let unstored = if embree.is_some() { prims.len() } else { 0 };
+        let mut triangles: Vec<LeafTriangle> =
+            Vec::with_capacity(prims.len() - unstored + cuboid_triangles);
+        triangles.extend(
+            prims[unstored..]
+                .iter()
+                .map(|p| match shapes[p.shape as usize] {
+                    Geometry::Mesh(m) if p.index != ANALYTIC => LeafTriangle::of(m, p.index),
+                    _ => LeafTriangle {
+                        p0: Vec3A::ZERO,
+                        e1: Vec3A::ZERO,
+                        e2: Vec3A::ZERO,
+                    },
+                }),
+        );
         for c in &mut cuboids {
-            c.first_leaf = triangles.len() as u32;
+            c.first_leaf = (unstored + triangles.len()) as u32;
             if let Geometry::Mesh(m) = shapes[c.shape as usize] {
-                triangles.extend((0..m.triangles.len() as u32).map(|ti| leaf_triangle(m, ti)));
+                triangles.extend((0..m.triangles.len() as u32).map(|ti| LeafTriangle::of(m, ti)));
             }
         }
         let n = prims.len();
@@ -164,6 +172,7 @@ impl Accel {
             prims: Primitives {
                 refs: prims,
                 triangles,
+                unstored,
             },
             analytic,
             cuboids,
@@ -173,35 +182,43 @@ impl Accel {
     }
 }
 
-/// Triangle `ti` of `m` as the hit tests read it.
-fn leaf_triangle(m: &TriangleMesh, ti: u32) -> LeafTriangle {
-    let [p0, p1, p2] = m.vertices(ti);
-    LeafTriangle {
-        p0,
-        e1: p1 - p0,
-        e2: p2 - p0,
+/// Primitive `p`'s bounding box, for obvhs's build.
+fn prim_aabb(shapes: &[&Geometry], p: &PrimRef) -> Aabb {
+    let b = match shapes[p.shape as usize] {
+        Geometry::Mesh(m) if p.index != ANALYTIC => {
+            let mut b = Bounds::EMPTY;
+            for v in m.vertices(p.index) {
+                b.expand(v);
+            }
+            b
+        }
+        g => g.bounds(),
+    };
+    Aabb {
+        min: b.min,
+        max: b.max,
     }
 }
 
-/// Embree's scene over the triangles of `prims` (in input order: each mesh's
-/// triangles contiguous, in the mesh's order).
+/// Embree's scene over the meshes' triangles but the cubes' (tested as boxes), as the
+/// primitive list has them: each mesh's triangles contiguous, in the mesh's order.
 fn build_embree(
     shapes: &[&Geometry],
-    prims: &[PrimRef],
+    cuboids: &[Cuboid],
     filtered: bool,
 ) -> Result<EmbreeScene, String> {
     let mut meshes = Vec::new();
     let mut leaf = 0;
-    while leaf < prims.len() {
-        let shape = prims[leaf].shape;
-        let Geometry::Mesh(m) = shapes[shape as usize] else {
-            return Err(format!("shape {shape} is not a mesh"));
-        };
+    for (si, g) in shapes.iter().enumerate() {
+        let Geometry::Mesh(m) = g else { continue };
+        if m.triangles.is_empty() || cuboids.iter().any(|c| c.shape == si as u32) {
+            continue;
+        }
         meshes.push(MeshRef {
             positions: &m.positions,
             triangles: &m.triangles,
             first_leaf: leaf as u32,
-            shape,
+            shape: si as u32,
         });
         leaf += m.triangles.len();
     }

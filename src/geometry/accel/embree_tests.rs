@@ -114,7 +114,7 @@ pub(super) fn rays(g: &[Geometry], accel: &Accel, n: usize) -> Vec<(Vec3A, Vec3A
         if i % 3 != 2 {
             if let Some(h) = accel.intersect(g, o, d, f32::INFINITY) {
                 if h.leaf != u32::MAX {
-                    from = Some(accel.triangle_surface(o, d, &h));
+                    from = Some(accel.triangle_surface(g, o, d, &h));
                 }
             }
         }
@@ -185,8 +185,8 @@ fn closest_hit_and_occlusion_match_obvhs() {
                     "{why}"
                 );
                 if a.leaf != u32::MAX {
-                    let (pa, na) = ours.triangle_surface(o, d, &a);
-                    let (pb, nb) = embree.triangle_surface(o, d, &b);
+                    let (pa, na) = ours.triangle_surface(&g, o, d, &a);
+                    let (pb, nb) = embree.triangle_surface(&g, o, d, &b);
                     assert!(
                         (pa - pb).length() < 1e-4 && (na - nb).length() < 1e-4,
                         "{why}"

@@ -24,13 +24,37 @@ pub(super) struct Primitives {
     /// Primitive `i` of the caster.
     pub refs: Vec<PrimRef>,
     /// Primitive `i`'s triangle, when it is one (zeros for analytic shapes); then the
-    /// triangles of the cubes tested as boxes (from each one's `first_leaf`).
+    /// triangles of the cubes tested as boxes (from each one's `first_leaf`). The
+    /// first `unstored` leaves are left out (read with [`Primitives::triangle`]).
     pub triangles: Vec<LeafTriangle>,
+    /// Leaves whose triangle is not in `triangles` but worked out from the mesh when
+    /// asked: Embree's (it tests its own copy; the few reads left are for a surface
+    /// without Embree's normal), all of them, else none.
+    pub unstored: usize,
 }
 
 impl Primitives {
     pub fn len(&self) -> usize {
         self.refs.len()
+    }
+
+    /// Leaf `leaf`'s triangle: the stored copy, or the same values worked out from the
+    /// mesh for an unstored one.
+    #[inline(always)]
+    pub fn triangle(&self, shapes: &[Geometry], leaf: usize) -> LeafTriangle {
+        if leaf >= self.unstored {
+            return self.triangles[leaf - self.unstored];
+        }
+        let p = self.refs[leaf];
+        match &shapes[p.shape as usize] {
+            Geometry::Mesh(m) => LeafTriangle::of(m, p.index),
+            // What is stored for an analytic shape (unstored leaves are all triangles).
+            _ => LeafTriangle {
+                p0: Vec3A::ZERO,
+                e1: Vec3A::ZERO,
+                e2: Vec3A::ZERO,
+            },
+        }
     }
 
     /// The hit of the ray with primitive `i`, if closer than `tmax`.
@@ -81,7 +105,7 @@ impl Primitives {
         t: f32,
         d: Vec3A,
     ) -> Crossing {
-        let tri = &self.triangles[leaf];
+        let tri = self.triangle(shapes, leaf);
         let along = d.dot(tri.e1.cross(tri.e2)) > 0.0;
         let flip = matches!(&shapes[shape as usize], Geometry::Mesh(m) if m.flip_normals);
         Crossing {

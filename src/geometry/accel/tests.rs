@@ -186,7 +186,7 @@ fn node_test_matches_obvhs() {
 #[test]
 #[ignore]
 fn traversal_speed() {
-    use crate::geometry::mesh::read_ply;
+    use crate::geometry::ply::read_ply;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(".cache/meshes/bunny_watertight.ply");
     let Ok(raw) = read_ply(&path) else {
         eprintln!("no {}: run scripts/fetch_meshes", path.display());

@@ -2,6 +2,8 @@
 
 use glam::Vec3A;
 
+use crate::geometry::mesh::TriangleMesh;
+
 /// A triangle as the intersection test reads it: `p0` and the edges `e1 = p1 − p0`,
 /// `e2 = p2 − p0`, precomputed and stored in the BVH's leaf order, so that a leaf's
 /// triangles are one contiguous read instead of an index lookup and three vertex loads
@@ -14,6 +16,17 @@ pub(super) struct LeafTriangle {
 }
 
 impl LeafTriangle {
+    /// Triangle `ti` of `m` as the hit tests read it.
+    #[inline]
+    pub fn of(m: &TriangleMesh, ti: u32) -> LeafTriangle {
+        let [p0, p1, p2] = m.vertices(ti);
+        LeafTriangle {
+            p0,
+            e1: p1 - p0,
+            e2: p2 - p0,
+        }
+    }
+
     /// Möller–Trumbore: (t, u, v), u and v the barycentrics of vertices 1 and 2.
     #[inline(always)]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(f32, f32, f32)> {
