@@ -196,18 +196,15 @@ pub fn fit(
         .map(|(u, &x)| u.from_x(x))
         .collect();
     let ci = intervals(targets, settings, mi, &unknowns, &best_x);
-    // Still moving: the averaged iterates' two halves differ by more than the interval's
-    // half-width (the interval then understates the error).
-    let half = tail.len() / 2;
-    let mean_of =
-        |xs: &[Vec<f64>], i: usize| xs.iter().map(|x| x[i]).sum::<f64>() / xs.len().max(1) as f64;
-    let converged = half == 0
-        || unknowns.iter().enumerate().all(|(i, u)| {
-            let drift =
-                (u.from_x(mean_of(&tail[half..], i)) - u.from_x(mean_of(&tail[..half], i))).abs();
-            let half_width = 0.5 * (ci[i][1] - ci[i][0]);
-            drift <= half_width || drift.is_nan() || half_width.is_nan()
-        });
+    // Still moving: the averaged iterates' trend (a least-squares line through them)
+    // carries a value across the window by more than its interval's half-width (the
+    // interval then understates the error: the estimate lags the optimum).
+    let converged = unknowns.iter().enumerate().all(|(i, u)| {
+        let values: Vec<f64> = tail.iter().map(|x| u.from_x(x[i]) as f64).collect();
+        let drift = trend(&values).abs() * values.len() as f64;
+        let half_width = 0.5 * (ci[i][1] - ci[i][0]) as f64;
+        drift <= half_width || drift.is_nan() || half_width.is_nan()
+    });
     Ok(FitResult {
         unknowns,
         values,
@@ -249,6 +246,22 @@ fn check(targets: &[FitTarget], settings: &FitSettings) -> Result<u32, FitError>
         }
     }
     Ok(mi)
+}
+
+/// The slope per step of the least-squares line through `values` (0 for fewer than two).
+fn trend(values: &[f64]) -> f64 {
+    let n = values.len() as f64;
+    if values.len() < 2 {
+        return 0.0;
+    }
+    let mean_i = (n - 1.0) / 2.0;
+    let mean_v = values.iter().sum::<f64>() / n;
+    let (mut num, mut den) = (0.0, 0.0);
+    for (i, v) in values.iter().enumerate() {
+        num += (i as f64 - mean_i) * (v - mean_v);
+        den += (i as f64 - mean_i).powi(2);
+    }
+    num / den
 }
 
 /// Puts the values at step coordinates `x` into medium `mi` of every target's scene.
