@@ -224,6 +224,15 @@ fn check(targets: &[FitTarget], settings: &FitSettings) -> Result<u32, FitError>
     let (_, mi) = medium_gradient(&first.scene, settings.medium.as_deref(), &settings.params)
         .map_err(FitError::Gradient)?;
     for (i, t) in targets.iter().enumerate() {
+        // Each target's scene (its own defines) must have the same medium to fit.
+        let (_, own) = medium_gradient(&t.scene, settings.medium.as_deref(), &settings.params)
+            .map_err(FitError::Gradient)?;
+        if own != mi {
+            return Err(FitError::Target(format!(
+                "target {}: its scene's medium to fit is #{own}, the first target's #{mi}",
+                i + 1
+            )));
+        }
         let film = &t.scene.shot.film;
         if (t.image.width, t.image.height) != film.crop_size {
             return Err(FitError::Target(format!(

@@ -77,8 +77,8 @@ impl Unknown {
     /// Sets the value in `m`, clamped to the parameter's range.
     pub fn set(&self, m: &mut HomogeneousMedium, v: f32) {
         let channels = match self.channel {
-            None => vec![0, 1, 2],
-            Some(c) => vec![c],
+            None => 0..3,
+            Some(c) => c..c + 1,
         };
         match self.param {
             MediumParam::SigmaT => {
