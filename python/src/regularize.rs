@@ -19,12 +19,12 @@ use crate::{bad_arg, param_text, PyScene, SceneError};
 /// regularize(scene, spp=None, seed=0, threads=None, medium=None, predict="difference",
 /// factor=None, pilot_renders=8, pilot_spp=1, c_beta=0.5, fit_spp=4, fit_at=1.0,
 /// frames=11, wa=0.1, reproject="exact", orbit=None, target=None, dolly=None,
-/// camera_path=None, spatial=None, denoise=None)
+/// camera_path=None, spatial=None, denoise=None, pick=True)
 #[pyfunction]
 #[pyo3(signature = (scene, spp=None, seed=0, threads=None, medium=None, predict="difference",
     factor=None, pilot_renders=8, pilot_spp=1, c_beta=None, fit_spp=4, fit_at=1.0, frames=11,
     wa=0.1, reproject="exact", orbit=None, target=None, dolly=None, camera_path=None,
-    spatial=None, denoise=None))]
+    spatial=None, denoise=None, pick=true))]
 #[allow(clippy::too_many_arguments)]
 pub fn regularize<'py>(
     py: Python<'py>,
@@ -49,6 +49,7 @@ pub fn regularize<'py>(
     camera_path: Option<PathBuf>,
     spatial: Option<bool>,
     denoise: Option<&str>,
+    pick: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let data = Arc::clone(&scene.get().inner);
     if spp == Some(0) {
@@ -145,6 +146,7 @@ pub fn regularize<'py>(
         motion,
         spatial,
         oidn,
+        pick,
         show_progress: false,
     };
     let shot = data.shot.with(spp.unwrap_or(data.shot.spp), seed);
@@ -175,5 +177,9 @@ pub fn regularize<'py>(
     d.set_item("factor", r.pilot.map(|p| p.factor))?;
     d.set_item("c_beta", r.c_beta)?;
     d.set_item("frames", r.frames_rendered)?;
+    d.set_item(
+        "pipeline",
+        r.pipeline_check.as_ref().map(|c| c.chosen.as_str()),
+    )?;
     Ok(d)
 }

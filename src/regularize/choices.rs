@@ -51,6 +51,9 @@ pub struct Choices {
     /// Filter with Open Image Denoise (`OidnUse::Frames`) instead of the bilateral
     /// filter. None: with the difference predictor when the library loads.
     pub oidn: Option<bool>,
+    /// Pick the frame's pipeline by `pick`'s check (where it applies: the difference
+    /// predictor through OIDN, more than one frame).
+    pub pick: bool,
     pub show_progress: bool,
 }
 
@@ -67,6 +70,7 @@ impl Default for Choices {
             motion: Motion::Static,
             spatial: None,
             oidn: None,
+            pick: true,
             show_progress: false,
         }
     }
@@ -158,6 +162,7 @@ pub fn options(scene: &Scene, shot: &Shot, c: &Choices) -> Result<(Options, Shot
         },
         auto_factor,
         method: c.method,
+        pick: c.pick && difference && oidn && c.frames > 1,
         show_progress: c.show_progress,
     };
     Ok((options, target_shot))

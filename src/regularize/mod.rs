@@ -8,13 +8,14 @@
 //! (Eq. 9–10), `spatial` (a still-image denoiser), `predict` (Eq. 11–12), `fit` (c_β
 //! without a reference), `pilot` (the source factor without a reference, for the
 //! difference predictor), `fallback` (one plain frame, through OIDN where that lowers
-//! the error) and `choices` (the options from a caller's choices, shared by the CLI and
+//! the error), `pick` (which pipeline a sequence's frame comes from) and `choices` (the options from a caller's choices, shared by the CLI and
 //! the Python module).
 
 pub mod choices;
 pub mod fallback;
 pub mod fit;
 pub mod options;
+pub mod pick;
 pub mod pilot;
 pub mod pipeline;
 pub mod predict;

@@ -19,6 +19,7 @@ use super::fallback::{self, OidnCheck};
 use super::fit::fit_c_beta;
 use super::options::validate;
 pub use super::options::{CBeta, Method, OidnUse, Options, RegularizeError, Reproject};
+use super::pick::{self, CheckInput, Pipeline, PipelineCheck, RawFrame};
 pub use super::pilot::PilotSize;
 use super::pilot::{self, Pilot, PilotSettings};
 use super::predict::{Albedos, Predictor};
@@ -32,6 +33,8 @@ use crate::integrator::volpath::Gradient;
 use crate::integrator::{aovs, render, RenderOptions, Rendered};
 use crate::scene::shot::Shot;
 use crate::scene::Scene;
+
+mod picked;
 
 /// Seconds spent in each step.
 #[derive(Clone, Debug, Default)]
@@ -49,6 +52,9 @@ pub struct Timings {
     /// The target frame's own denoising (`OidnUse::Frames`) and the sharpening of its
     /// seen emission, beside `target_frame`.
     pub frame_denoise: f64,
+    /// The check that picked the pipeline (`pick`; 0 without one), the denoising of the
+    /// pipelines not chosen included: like the pilot, once per sequence.
+    pub check: f64,
 }
 
 pub struct Regularized {
@@ -82,6 +88,8 @@ pub struct Regularized {
     pub pilot_unaffordable: bool,
     /// One plain frame with OIDN: whether OIDN lowered the error (`fallback`).
     pub oidn_check: Option<OidnCheck>,
+    /// Which pipeline the frame came from, and why (`pick`), where one was picked.
+    pub pipeline_check: Option<PipelineCheck>,
 }
 
 /// Runs the method on `scene` through `shot`, whose camera is the target frame. The
@@ -102,12 +110,17 @@ pub fn regularize(
     // Step 1: the source albedo (the pilot's factor, if asked), and the predictor.
     let choice = choose_albedos(scene, shot, opts, &features)?;
     let run = Run::new(scene, shot, opts, &features, choice.albedos);
-
-    // Step 2: the sequence, earliest frame first.
     let mut timings = Timings {
         pilot: choice.pilot.as_ref().map_or(0.0, |p| p.seconds),
         ..Default::default()
     };
+    if opts.pick && opts.oidn == OidnUse::Frames && run.frames.len() > 1 {
+        if let Gradient::Difference { .. } = run.gradient {
+            return run.picked(choice, timings);
+        }
+    }
+
+    // Step 2: the sequence, earliest frame first.
     let Sequence {
         mut gradients,
         source,
@@ -160,6 +173,7 @@ pub fn regularize(
         pilot: choice.pilot,
         pilot_unaffordable: choice.pilot_unaffordable,
         oidn_check: None,
+        pipeline_check: None,
     })
 }
 
@@ -210,6 +224,7 @@ fn plain_frame(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regularized
         pilot: None,
         pilot_unaffordable: false,
         oidn_check: f.check,
+        pipeline_check: None,
     })
 }
 

@@ -17,6 +17,8 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
     /// Drawn as a dashed line without markers (references, baselines).
     pub dashed: bool,
+    /// An interval about each point, (x, low, high), drawn as a translucent band.
+    pub band: Vec<(f64, f64, f64)>,
 }
 
 impl Series {
@@ -25,7 +27,14 @@ impl Series {
             name: name.into(),
             points,
             dashed: false,
+            band: Vec::new(),
         }
+    }
+
+    /// The curve with a band from `low` to `high` at each of its points' x.
+    pub fn with_band(mut self, band: Vec<(f64, f64, f64)>) -> Series {
+        self.band = band;
+        self
     }
 
     pub fn dashed(name: &str, points: Vec<(f64, f64)>) -> Series {
@@ -201,11 +210,22 @@ pub fn line_plot(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
                 .iter()
                 .map(|&(x, y)| (to_axis(x, axes.log_x), to_axis(y, axes.log_y)))
                 .collect(),
+            band: s
+                .band
+                .iter()
+                .map(|&(x, lo, hi)| {
+                    let y = |v: f64| to_axis(v, axes.log_y);
+                    (to_axis(x, axes.log_x), y(lo), y(hi))
+                })
+                .collect(),
             ..s.clone()
         })
         .collect();
     let xr = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)))?;
-    let yr = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)))?;
+    let yr = range(series.iter().flat_map(|s| {
+        let band = s.band.iter().flat_map(|b| [b.1, b.2]);
+        s.points.iter().map(|p| p.1).chain(band)
+    }))?;
     let label = |log: bool| move |v: &f64| tick(if log { 10f64.powf(*v) } else { *v });
     let (x_label, y_label) = (label(axes.log_x), label(axes.log_y));
     let err = |e: &dyn std::fmt::Display| anyhow!("cannot draw {}: {e}", path.display());
@@ -248,6 +268,26 @@ pub fn line_plot(path: &Path, axes: &Axes, series: &[Series]) -> Result<()> {
             .copied()
             .filter(|p| p.0.is_finite() && p.1.is_finite())
             .collect();
+        let band: Vec<(f64, f64, f64)> = s
+            .band
+            .iter()
+            .copied()
+            .filter(|b| b.0.is_finite() && b.1.is_finite() && b.2.is_finite())
+            .collect();
+        if band.len() >= 2 {
+            // The upper edge left to right, then the lower edge back.
+            let outline: Vec<(f64, f64)> = band
+                .iter()
+                .map(|b| (b.0, b.2))
+                .chain(band.iter().rev().map(|b| (b.0, b.1)))
+                .collect();
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    outline,
+                    color.mix(0.15).filled(),
+                )))
+                .map_err(|e| err(&e))?;
+        }
         let anno = if s.dashed {
             chart
                 .draw_series(DashedLineSeries::new(points, 8, 5, style))

@@ -107,6 +107,9 @@ pub struct TableRun {
     pub overheads: Vec<(String, Method, f64)>,
     /// Per scene with a `regularized` row: where its gain goes.
     pub decomposition: Vec<Decomposition>,
+    /// Per scene and seed: OIDN's seconds on one image (the 1-spp probe of
+    /// `volpath_oidn`), for its share of a budget.
+    pub oidn_seconds: Vec<(String, f64)>,
 }
 
 fn scene_file(opts: &TableOptions, scene: &str) -> PathBuf {
@@ -172,6 +175,7 @@ pub fn sequence_options(
         oidn: regularize::OidnUse::None,
         method: regularize::Method::Paper(CBeta::Fixed(opts.c_beta)),
         auto_factor: None,
+        pick: false,
         show_progress: false,
     }
 }
@@ -505,7 +509,9 @@ fn run_baselines(ctx: &SceneRun, run: &mut TableRun) -> Result<Baselines> {
         true => {
             let shot = scene.shot.with(1, seed.wrapping_add(3_000_000));
             let probe = render(scene, &shot, &ctx.with_seen);
-            Some(volpath_oidn(scene, &shot, &probe)?.1)
+            let t = volpath_oidn(scene, &shot, &probe)?.1;
+            run.oidn_seconds.push((ctx.name.to_string(), t));
+            Some(t)
         }
         false => None,
     };
@@ -555,7 +561,57 @@ fn run_still_baselines(
     if baselines.oidn_seconds.is_some() {
         push_volpath_oidn(ctx, run, (&shot, &r), Accounting::Still, spp)?;
     }
-    Ok(())
+    run_still_regularized(ctx, run, baselines, total)
+}
+
+/// The default row in the still accounting: what `regularize --frames 1` makes of the
+/// whole time (one plain frame, through OIDN where `regularize::fallback`'s check finds
+/// it lowers the error), charged all it spends. With OIDN only: without it the one
+/// frame is the bilateral pipeline, which no still baseline uses.
+fn run_still_regularized(
+    ctx: &SceneRun,
+    run: &mut TableRun,
+    baselines: &Baselines,
+    total: f64,
+) -> Result<()> {
+    let (Some(t_oidn), Some(per_spp)) = (baselines.oidn_seconds, baselines.volpath_per_spp) else {
+        return Ok(());
+    };
+    if ctx.skip(Method::Regularized) {
+        return Ok(());
+    }
+    let options = regularize::Options {
+        medium: ctx.medium,
+        factor: 1.0,
+        frames: 1,
+        method: regularize::Method::Difference,
+        oidn: regularize::OidnUse::Frames,
+        ..Default::default()
+    };
+    // The check's second OIDN run comes out of the time too.
+    let spp = spp_for(total - 2.0 * t_oidn, per_spp);
+    let shot = ctx.scene.shot.with(spp, ctx.seed.wrapping_add(30));
+    let r = regularize::regularize(&ctx.scene, &shot, &options).map_err(|e| anyhow!("{e}"))?;
+    if let Some(c) = &r.oidn_check {
+        run.notes.push(format!(
+            "{} seed {} regularized (still, one frame): {}",
+            ctx.name,
+            ctx.seed,
+            match c.chose_oidn {
+                true => "plain volpath through OIDN",
+                false => "plain volpath, OIDN raised the error",
+            }
+        ));
+    }
+    let t = &r.timings;
+    let out = MethodImage::baseline(
+        Method::Regularized,
+        Accounting::Still,
+        &r.predicted,
+        spp,
+        t.target_frame + t.frame_denoise,
+    );
+    ctx.push(run, out).map(|_| ())
 }
 
 /// The render `r` of `shot` (`spp` samples) through OIDN: volpath_oidn's row, charged
@@ -666,6 +722,7 @@ pub fn default_options(opts: &TableOptions, sequence: &regularize::Options) -> r
             true => regularize::OidnUse::Frames,
             false => regularize::OidnUse::None,
         },
+        pick: opts.oidn,
         ..sequence.clone()
     }
 }

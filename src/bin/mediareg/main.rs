@@ -52,6 +52,10 @@ enum Command {
     /// with their numbers (figN.json), from reduced-size sweeps against the references
     /// in reference/figures/ (Fig. 7: the full-size cube).
     Figures(paper::FiguresArgs),
+    /// Table 1's methods across budgets at the figures' reduced size, both accountings,
+    /// several seeds: OUT/sweep.json (each ratio to the best baseline with its 95%
+    /// interval) and a plot of MSE against seconds per scene and accounting.
+    Sweep(paper::SweepArgs),
     /// Fit a medium's parameters (sigma_t, albedo, g, scale) to target images; writes
     /// OUT.json with the values, their 95% intervals and the loss per iteration.
     Fit(fit::FitArgs),
@@ -113,6 +117,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Table(args) => paper::table(args),
         Command::Report(args) => paper::report(args),
         Command::Figures(args) => paper::figures(args),
+        Command::Sweep(args) => paper::sweep(args),
         Command::Merge(args) => merge::run(args),
         Command::Fit(args) => fit::run(args),
     }

@@ -77,6 +77,39 @@ pub fn figures(cmd: FiguresArgs) -> Result<()> {
     Ok(())
 }
 
+/// Table 1's methods across budgets (`report::sweep`).
+#[derive(Args)]
+pub struct SweepArgs {
+    #[command(flatten)]
+    pub table: TableArgs,
+    /// Seconds per method and frame.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0.16,0.32,0.64,1.28,2.56"
+    )]
+    pub budgets: Vec<f64>,
+    /// Resolution (`-D res=`), with references made for it.
+    #[arg(long, default_value_t = 128)]
+    pub res: u32,
+    #[arg(long, default_value = "reference/figures")]
+    pub figure_reference_dir: PathBuf,
+}
+
+pub fn sweep(cmd: SweepArgs) -> Result<()> {
+    let threads = cmd.table.threads;
+    let base = table_options(cmd.table, "out/sweep")?;
+    let opts = report::sweep::SweepOptions {
+        base,
+        reference_dir: cmd.figure_reference_dir,
+        res: cmd.res,
+        budgets: cmd.budgets,
+    };
+    let json = report::sweep::run_sweep(&opts, threads)?;
+    println!("wrote {}", json.display());
+    Ok(())
+}
+
 /// An HTML page (reports/index.html) from a table run and the figures: per scene the
 /// reference, each method's image and error map, the table, the plots. Also remakes
 /// the table's table1.md from its JSON files.

@@ -86,6 +86,11 @@ pub struct RegularizeArgs {
     /// The prediction function.
     #[arg(long, value_enum, default_value = "difference")]
     pub predict: PredictArg,
+    /// Keep the method's pipeline: do not let the check on held-out samples pick the
+    /// control, plain + OIDN or plain volpath instead (with the difference predictor
+    /// through OIDN and more than one frame; see docs/regularize.md).
+    #[arg(long)]
+    pub no_pick: bool,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -132,6 +137,7 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
         no_spatial,
         denoise,
         predict,
+        no_pick,
         pilot_renders,
         pilot_spp,
     } = cmd;
@@ -194,6 +200,7 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
             (None, true) => Some(false),
             (None, false) => None,
         },
+        pick: !no_pick,
         show_progress: std::io::stderr().is_terminal(),
     };
     let (opts, shot) = regularize::choices::options(&scene_data, &scene_data.shot, &choices)
@@ -259,6 +266,22 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
             c.plain_variance,
             c.spp_each,
             shot.spp
+        );
+    }
+    if let Some(c) = &r.pipeline_check {
+        let errors: Vec<String> = mediareg::regularize::pick::Pipeline::ALL
+            .iter()
+            .zip(&c.errors)
+            .map(|(p, (e, se))| format!("{} {e:.3e} ± {se:.1e}", p.as_str()))
+            .collect();
+        println!(
+            "pipeline: {} (squared error on the central {}x{} pixels, from 2 x {} held-out spp: {}; {:.2} s)",
+            c.chosen.as_str(),
+            c.window.width,
+            c.window.height,
+            c.spp_each,
+            errors.join(", "),
+            c.seconds
         );
     }
     if r.pilot_unaffordable {

@@ -144,9 +144,17 @@ fn sequence_spp(ctx: &SceneRun, run: &mut TableRun, sequence: &SequenceRun) -> R
             let probe_shot = ctx.scene.shot.with(1, ctx.seed.wrapping_add(2_000_000));
             let probe = regularize::regularize(&ctx.scene, &probe_shot, &sequence.options)
                 .map_err(|e| anyhow!("{e}"))?;
-            let o = probe.timings.denoise_and_predict
-                + probe.timings.frame_denoise
-                + probe.timings.pilot / probe.frames_rendered as f64;
+            let t = &probe.timings;
+            // A pipeline picked for denoising less spends what it saves on samples
+            // (`pick`): the budget leaves room for the split's denoising.
+            let saved = probe
+                .pipeline_check
+                .as_ref()
+                .map_or(0.0, |c| c.denoise_seconds.saved_on_target(c.chosen));
+            let o = t.denoise_and_predict
+                + t.frame_denoise
+                + saved
+                + (t.pilot + t.check) / probe.frames_rendered as f64;
             run.overheads.push((name.to_string(), method, o));
             o
         }
@@ -183,12 +191,27 @@ fn run_sequence(ctx: &SceneRun, run: &mut TableRun, sequence: &SequenceRun) -> R
             r.fallbacks
         ));
     }
-    // One frame of the sequence, and the pilot's share of it (a pilot serves the
-    // whole sequence).
-    let seconds = r.timings.target_frame
-        + r.timings.frame_denoise
-        + r.timings.denoise_and_predict
-        + r.timings.pilot / r.frames_rendered as f64;
+    if let Some(c) = &r.pipeline_check {
+        let errors: Vec<String> = c
+            .errors
+            .iter()
+            .map(|(e, se)| format!("{e:.3e} ± {se:.1e}"))
+            .collect();
+        run.notes.push(format!(
+            "{name} seed {seed} {}: the check picked {} (split, control, plain + OIDN, plain: {}) in {:.2} s",
+            method.as_str(),
+            c.chosen.as_str(),
+            errors.join(", "),
+            c.seconds
+        ));
+    }
+    // One frame of the sequence, and the pilot's and the check's share of it (each
+    // serves the whole sequence).
+    let t = &r.timings;
+    let seconds = t.target_frame
+        + t.frame_denoise
+        + t.denoise_and_predict
+        + (t.pilot + t.check) / r.frames_rendered as f64;
     let is_sequence = method != Method::RegularizedSpatial;
     let out = MethodImage {
         method,
@@ -198,7 +221,10 @@ fn run_sequence(ctx: &SceneRun, run: &mut TableRun, sequence: &SequenceRun) -> R
         spp,
         seconds,
         sequence: is_sequence.then_some((r.frames_rendered, sequence_seconds)),
-        still_seconds: (ctx.opts.still && is_sequence).then_some(sequence_seconds),
+        // The default's still row is `regularize --frames 1` at this time
+        // (`run_still_regularized`): one image is what a still asks for.
+        still_seconds: (ctx.opts.still && is_sequence && method != Method::Regularized)
+            .then_some(sequence_seconds),
     };
     let mse_corrected = ctx.push(run, out)?;
     if let (Method::Regularized, Some(pilot), true) = (method, &r.pilot, ctx.first_seed) {
