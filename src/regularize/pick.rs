@@ -13,17 +13,18 @@
 //! held-out plain renders A and B of the target view at α_t (p spp each, seeds of their
 //! own) are independent of all four, so for each candidate Y
 //!
-//!   E ½[(Y − A)² + (Y − B)²] − E ½(A − B)² = MSE(Y)                                 (K1)
+//!   E ½[(Y − A)² + (Y − B)²] − E ½(A − B)² = E (Y − A)(Y − B) = MSE(Y)              (K1)
 //!
-//! (A's variance cancels, `fallback`'s (F1) idea with Y in place of OIDN(M)). The check
-//! evaluates (K1) on a window of the image, the central quarter, so that each frame is
-//! denoised by both pipelines only there (a crop of the frame around where the window's
-//! pixels reproject, with a margin for OIDN's context), and A and B render only the
-//! window. The least (K1) wins; the rule takes no margin (a wrong choice happens where
-//! the errors are within the estimate's noise, where it costs little). The chosen
-//! pipeline then runs on the whole frames; where it denoises less than the split, the
-//! time it saves buys more samples first (`DenoiseSeconds`: a frame of an animation
-//! made with that pipeline would have spent its budget on them).
+//! (A's variance cancels, `fallback`'s (F1) idea with Y in place of OIDN(M)). The least
+//! (K1) wins, without a margin: a wrong choice happens where the errors are within the
+//! estimate's noise, where it costs little. The noise of each estimate is mostly A's
+//! and B's own, which is common to all four and cancels in their differences, so each
+//! candidate's standard error is given against the chosen one's.
+//!
+//! The whole image is checked: a window was tried and missed the Candle's flame, where
+//! the control's error lives (a few pixels at its outline, 800× plain + OIDN's there).
+//! So both sequence pipelines denoise every frame; the check's cost is the pipeline not
+//! chosen, A and B, and (K1).
 
 use std::time::Instant;
 
@@ -67,132 +68,15 @@ impl Pipeline {
 pub struct PipelineCheck {
     /// p: each of A and B.
     pub spp_each: u32,
-    /// The window: offset and size in the shot's image, pixels.
-    pub window: Window,
-    /// Per candidate (`Pipeline::ALL`'s order): (K1) on the window, and the standard
-    /// error of its excess over the chosen one's (0 for the chosen).
+    /// Per candidate (`Pipeline::ALL`'s order): (K1), and the standard error of its
+    /// excess over the chosen one's (0 for the chosen), over 8×8-pixel blocks (OIDN's
+    /// output is correlated between neighbours, blocks nearly are not).
     pub errors: [(f64, f64); 4],
     pub chosen: Pipeline,
-    /// A and B, the crops' denoising, the blends and (K1).
+    /// What the check cost beyond the chosen pipeline's own denoising: A and B, the
+    /// other pipelines' denoising and blends, and (K1).
     pub seconds: f64,
-    /// OIDN's seconds on a whole frame, estimated from the crops' (scaled by their
-    /// pixels): what each pipeline's denoising of a frame costs.
-    pub denoise_seconds: DenoiseSeconds,
 }
-
-/// OIDN's seconds on one whole frame, per image the pipelines denoise.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct DenoiseSeconds {
-    /// D (signed: two runs), per frame.
-    pub difference: f64,
-    /// R_s + D, per frame.
-    pub plain: f64,
-    /// R_s of the target frame.
-    pub source: f64,
-}
-
-impl DenoiseSeconds {
-    /// Seconds the target frame's denoising saves with `p` instead of the split.
-    pub fn saved_on_target(&self, p: Pipeline) -> f64 {
-        let split = self.difference + self.source;
-        match p {
-            Pipeline::Split => 0.0,
-            Pipeline::Control | Pipeline::PlainOidn => split - self.plain,
-            Pipeline::Plain => split,
-        }
-    }
-
-    /// Seconds an earlier frame's denoising saves with `p` (only the sequence
-    /// pipelines denoise earlier frames; the single-frame ones need none).
-    pub fn saved_on_earlier(&self, p: Pipeline) -> f64 {
-        match p {
-            Pipeline::Control => self.difference - self.plain,
-            _ => 0.0,
-        }
-    }
-}
-
-/// A rectangle of an image: offset and size in pixels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Window {
-    pub x: usize,
-    pub y: usize,
-    pub width: usize,
-    pub height: usize,
-}
-
-impl Window {
-    /// The central quarter of a `width` × `height` image (all of a tiny one).
-    pub fn central(width: usize, height: usize) -> Window {
-        let (w, h) = ((width / 2).max(1), (height / 2).max(1));
-        Window {
-            x: (width - w) / 2,
-            y: (height - h) / 2,
-            width: w,
-            height: h,
-        }
-    }
-
-    /// This window of `img`.
-    pub fn cut(&self, img: &Image) -> Image {
-        let pixels = (0..self.height)
-            .flat_map(|j| {
-                let start = (self.y + j) * img.width + self.x;
-                img.pixels[start..start + self.width].iter().copied()
-            })
-            .collect();
-        Image {
-            width: self.width,
-            height: self.height,
-            pixels,
-        }
-    }
-
-    /// A `width` × `height` image, zero but for `part` pasted at this window.
-    fn paste(&self, part: &Image, width: usize, height: usize) -> Image {
-        let mut pixels = vec![[0.0; 3]; width * height];
-        for j in 0..self.height {
-            let start = (self.y + j) * width + self.x;
-            pixels[start..start + self.width]
-                .copy_from_slice(&part.pixels[j * self.width..(j + 1) * self.width]);
-        }
-        Image {
-            width,
-            height,
-            pixels,
-        }
-    }
-
-    /// The smallest window of a `width` × `height` image holding `MARGIN` pixels around
-    /// every position of `points` (None: the whole image).
-    fn around(points: impl Iterator<Item = (f32, f32)>, width: usize, height: usize) -> Window {
-        let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
-        for (x, y) in points {
-            (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
-        }
-        if x0 > x1 {
-            return Window {
-                x: 0,
-                y: 0,
-                width: 1.min(width),
-                height: 1.min(height),
-            };
-        }
-        let lo = |v: f32| (v.floor() as i64 - MARGIN).max(0) as usize;
-        let hi = |v: f32, n: usize| ((v.ceil() as i64 + MARGIN).max(1) as usize).min(n);
-        let (x, y) = (lo(x0), lo(y0));
-        Window {
-            x,
-            y,
-            width: hi(x1, width) - x,
-            height: hi(y1, height) - y,
-        }
-    }
-}
-
-/// Pixels of context around a crop OIDN sees (its receptive field is wide; the error of
-/// a crop's border pixels decays within a few pixels).
-const MARGIN: i64 = 8;
 
 /// The share of the target frame's samples A and B take together (as `fallback`'s).
 pub const CHECK_SHARE: f64 = 0.1;
@@ -205,8 +89,6 @@ pub struct RawFrame {
     pub difference: Image,
     /// The directly seen emission, sharpened (`aovs`).
     pub seen: Image,
-    /// The render's seconds (for the time per spp).
-    pub render_seconds: f64,
 }
 
 impl RawFrame {
@@ -229,9 +111,8 @@ pub fn sum(a: &Image, b: &Image) -> Image {
     }
 }
 
-/// (K1) on the window for candidate `y` against held-out `a` and `b` (all the window's
-/// size), summed per 8×8-pixel block (OIDN's output is correlated between neighbours,
-/// blocks nearly are not), and divided by the values' count: the blocks sum to (K1).
+/// (K1) for candidate `y` against held-out `a` and `b`, summed per 8×8-pixel block and
+/// divided by the values' count: the blocks sum to (K1).
 fn held_out_blocks(y: &Image, a: &Image, b: &Image) -> Vec<f64> {
     const BLOCK: usize = 8;
     let (w, h) = (y.width, y.height);
@@ -243,7 +124,6 @@ fn held_out_blocks(y: &Image, a: &Image, b: &Image) -> Vec<f64> {
             let k = j * w + i;
             for c in 0..3 {
                 let [y, a, b] = [y, a, b].map(|img| img.pixels[k][c] as f64);
-                // ½[(y − a)² + (y − b)² − (a − b)²] = (y − a)(y − b)
                 blocks[(j / BLOCK) * bw + i / BLOCK] += (y - a) * (y - b) / n;
             }
         }
@@ -259,11 +139,9 @@ fn sum_and_se(blocks: impl ExactSizeIterator<Item = f64> + Clone) -> (f64, f64) 
     (mean * k, (k * var).sqrt())
 }
 
-/// (K1) on the window for candidate `y` against held-out `a` and `b`, and its
-/// standard error.
+/// (K1) for candidate `y` against held-out `a` and `b`, and its standard error.
 pub fn held_out_error(y: &Image, a: &Image, b: &Image) -> (f64, f64) {
-    let blocks = held_out_blocks(y, a, b);
-    sum_and_se(blocks.iter().copied())
+    sum_and_se(held_out_blocks(y, a, b).into_iter())
 }
 
 /// What the check needs of the run: the scene, the target frame's shot, the frames as
@@ -277,8 +155,22 @@ pub struct CheckInput<'a> {
     pub w_a: f64,
 }
 
-/// (K1) for every candidate on the central window; the least is chosen.
-pub fn check(input: &CheckInput) -> Result<PipelineCheck, OidnError> {
+/// The check's outcome: the chosen image, and what went into it.
+pub struct Checked {
+    pub check: PipelineCheck,
+    /// The chosen candidate.
+    pub image: Image,
+    /// The split's OIDN(R_s) of the target frame, and the blend its pipeline made (the
+    /// denoised differences', or the control's radiance), where it is a sequence one.
+    pub source: Image,
+    pub blended: Option<Image>,
+    /// The chosen pipeline's denoising of the target frame, and of all frames.
+    pub own_target_seconds: f64,
+    pub own_seconds: f64,
+}
+
+/// (K1) for every candidate; the least is chosen.
+pub fn check(input: &CheckInput) -> Result<Checked, OidnError> {
     let started = Instant::now();
     let CheckInput {
         scene,
@@ -288,80 +180,39 @@ pub fn check(input: &CheckInput) -> Result<PipelineCheck, OidnError> {
         w_a,
     } = *input;
     let (w, h) = (frames[0].source.width, frames[0].source.height);
-    let window = Window::central(w, h);
-    // Held-out plain renders of the window, far from every frame's seed (32 bits, as
-    // Mitsuba's seeds).
+    // Held-out plain renders, far from every frame's seed (32 bits, as Mitsuba's).
     let p = ((CHECK_SHARE / 2.0 * shot.spp as f64).round() as u32).max(1);
     let held_out = |k: u64| {
-        let mut s = shot.with(p, shot.seed.wrapping_add(k * 0x6a09_e667) & 0xffff_ffff);
-        let (ox, oy) = s.film.crop_offset;
-        s.film.crop_offset = (ox + window.x, oy + window.y);
-        s.film.crop_size = (window.width, window.height);
+        let s = shot.with(p, shot.seed.wrapping_add(k * 0x6a09_e667) & 0xffff_ffff);
         render(scene, &s, &RenderOptions::default()).image
     };
     let (a, b) = (held_out(7), held_out(8));
-    // Per frame, the crop whose denoised pixels the window's blend reads.
-    let window_pixels = || {
-        (0..window.height)
-            .flat_map(move |j| (0..window.width).map(move |i| (window.y + j) * w + window.x + i))
-    };
-    let crops: Vec<Window> = (0..frames.len())
-        .map(|k| match k {
-            0 => Window::around(
-                [
-                    (window.x as f32, window.y as f32),
-                    (
-                        (window.x + window.width) as f32,
-                        (window.y + window.height) as f32,
-                    ),
-                ]
-                .into_iter(),
-                w,
-                h,
-            ),
-            _ => Window::around(window_pixels().filter_map(|i| maps[k - 1][i]), w, h),
-        })
-        .collect();
-    // Each pipeline's frames, denoised on their crops only (zero elsewhere), timed
-    // per whole frame's worth of pixels.
-    let mut differences = Vec::with_capacity(frames.len());
-    let mut controls = Vec::with_capacity(frames.len());
-    let mut per_pixel = [0.0f64; 3];
-    let mut timed = |slot: usize, c: &Window, run: &mut dyn FnMut() -> Result<Image, OidnError>| {
+    // Each sequence pipeline's frames, timed: [per frame, of which the target's].
+    let mut seconds = [[0.0f64; 2]; 2];
+    let mut timed = |slot: usize, k: usize, run: &dyn Fn() -> Result<Image, OidnError>| {
         let start = Instant::now();
         let out = run()?;
-        per_pixel[slot] += start.elapsed().as_secs_f64() / (c.width * c.height) as f64;
-        Ok::<_, OidnError>(c.paste(&out, w, h))
+        let t = start.elapsed().as_secs_f64();
+        seconds[slot][0] += t;
+        if k == 0 {
+            seconds[slot][1] += t;
+        }
+        Ok::<_, OidnError>(out)
     };
-    for (f, c) in frames.iter().zip(&crops) {
-        differences.push(timed(0, c, &mut || {
-            denoise::oidn_signed(&c.cut(&f.difference), None, AuxUse::None)
+    let mut differences = Vec::with_capacity(frames.len());
+    let mut controls = Vec::with_capacity(frames.len());
+    for (k, f) in frames.iter().enumerate() {
+        differences.push(timed(0, k, &|| {
+            denoise::oidn_signed(&f.difference, None, AuxUse::None)
         })?);
-        controls.push(timed(1, c, &mut || {
-            denoise::oidn(
-                &c.cut(&f.plain()),
-                Some(&c.cut(&f.seen)),
-                None,
-                AuxUse::None,
-            )
+        controls.push(timed(1, k, &|| {
+            denoise::oidn(&f.plain(), Some(&f.seen), None, AuxUse::None)
         })?);
     }
-    let (f0, c0) = (&frames[0], &crops[0]);
-    let source0 = timed(2, c0, &mut || {
-        denoise::oidn(
-            &c0.cut(&f0.source),
-            Some(&c0.cut(&f0.seen)),
-            None,
-            AuxUse::None,
-        )
+    let f0 = &frames[0];
+    let source = timed(0, 0, &|| {
+        denoise::oidn(&f0.source, Some(&f0.seen), None, AuxUse::None)
     })?;
-    let n = frames.len() as f64;
-    let pixels = (w * h) as f64;
-    let denoise_seconds = DenoiseSeconds {
-        difference: per_pixel[0] / n * pixels,
-        plain: per_pixel[1] / n * pixels,
-        source: per_pixel[2] * pixels,
-    };
     let blend = |images: &[Image]| {
         let refs: Vec<&[[f32; 3]]> = images.iter().map(|i| i.pixels.as_slice()).collect();
         Image {
@@ -370,30 +221,57 @@ pub fn check(input: &CheckInput) -> Result<PipelineCheck, OidnError> {
             pixels: temporal::blend(&refs, maps, w, h, w_a),
         }
     };
-    let candidates = [
-        window.cut(&sum(&source0, &blend(&differences))),
-        window.cut(&blend(&controls)),
-        window.cut(&controls[0]),
-        window.cut(&frames[0].plain()),
+    let blended_difference = blend(&differences);
+    let blended_control = blend(&controls);
+    let mut candidates = [
+        sum(&source, &blended_difference),
+        blended_control.clone(),
+        controls.swap_remove(0),
+        f0.plain(),
     ];
-    let blocks = candidates.map(|y| held_out_blocks(&y, &a, &b));
+    let blocks = candidates.each_ref().map(|y| held_out_blocks(y, &a, &b));
     let totals = blocks.each_ref().map(|b| b.iter().sum::<f64>());
     let best = (0..4)
         .min_by(|&i, &j| totals[i].total_cmp(&totals[j]))
         .expect("four candidates");
-    // Each candidate against the chosen one, block by block: A's and B's own noise,
-    // which dominates each estimate, cancels in the difference.
+    // Each candidate against the chosen one, block by block.
     let errors = std::array::from_fn(|i| {
         let diff = blocks[i].iter().zip(&blocks[best]).map(|(x, y)| x - y);
         (totals[i], sum_and_se(diff).1)
     });
-    Ok(PipelineCheck {
-        spp_each: p,
-        window,
-        errors,
-        chosen: Pipeline::ALL[best],
-        seconds: started.elapsed().as_secs_f64(),
-        denoise_seconds,
+    let chosen = Pipeline::ALL[best];
+    // The chosen pipeline's own denoising: what a frame made with it pays anyway.
+    let (own_seconds, own_target_seconds) = match chosen {
+        Pipeline::Split => (seconds[0][0], seconds[0][1]),
+        Pipeline::Control => (seconds[1][0], seconds[1][1]),
+        Pipeline::PlainOidn => (seconds[1][1], seconds[1][1]),
+        Pipeline::Plain => (0.0, 0.0),
+    };
+    let blended = match chosen {
+        Pipeline::Split => Some(blended_difference),
+        Pipeline::Control => Some(blended_control),
+        _ => None,
+    };
+    let image = std::mem::replace(
+        &mut candidates[best],
+        Image {
+            width: 0,
+            height: 0,
+            pixels: Vec::new(),
+        },
+    );
+    Ok(Checked {
+        check: PipelineCheck {
+            spp_each: p,
+            errors,
+            chosen,
+            seconds: started.elapsed().as_secs_f64() - own_seconds,
+        },
+        image,
+        source,
+        blended,
+        own_target_seconds,
+        own_seconds,
     })
 }
 
@@ -452,36 +330,5 @@ mod tests {
         }
         let least = (0..3).min_by(|&i, &j| errors[i].0.total_cmp(&errors[j].0));
         assert_eq!(least, Some(1));
-    }
-
-    #[test]
-    fn windows_cut_and_paste_back() {
-        let img = Image {
-            width: 10,
-            height: 6,
-            pixels: (0..60).map(|i| [i as f32, 0.0, 1.0]).collect(),
-        };
-        let win = Window::central(10, 6);
-        assert_eq!(
-            win,
-            Window {
-                x: 2,
-                y: 1,
-                width: 5,
-                height: 3
-            }
-        );
-        let part = win.cut(&img);
-        assert_eq!(part.pixels[0][0], 12.0);
-        assert_eq!(part.pixels[14][0], 36.0);
-        let back = win.paste(&part, 10, 6);
-        assert_eq!(back.pixels[12], img.pixels[12]);
-        assert_eq!(back.pixels[36], img.pixels[36]);
-        assert_eq!(back.pixels[0], [0.0; 3]);
-        let around = Window::around([(4.5, 3.5)].into_iter(), 10, 6);
-        assert_eq!(
-            (around.x, around.y, around.width, around.height),
-            (0, 0, 10, 6)
-        );
     }
 }

@@ -19,7 +19,7 @@ use super::fallback::{self, OidnCheck};
 use super::fit::fit_c_beta;
 use super::options::validate;
 pub use super::options::{CBeta, Method, OidnUse, Options, RegularizeError, Reproject};
-use super::pick::{self, CheckInput, Pipeline, PipelineCheck, RawFrame};
+use super::pick::{self, CheckInput, PipelineCheck, RawFrame};
 pub use super::pilot::PilotSize;
 use super::pilot::{self, Pilot, PilotSettings};
 use super::predict::{Albedos, Predictor};

@@ -86,9 +86,21 @@ fn sequence_runs(
         .with_albedo(scene, medium, target_albedo * factor)
     };
     let per_spp_gradient = ctx.calibrate(&at_source(ctx.factor));
+    // The default renders the difference (a second estimate per path) and, through
+    // OIDN, the seen emission: calibrated as it renders.
     let per_spp_default = match auto.auto_factor {
         Some(_) => per_spp_gradient,
-        None => ctx.calibrate(&at_source(auto.factor)),
+        None => ctx.calibrate(
+            &RenderOptions {
+                gradient: Gradient::Difference {
+                    medium,
+                    target: target_albedo,
+                },
+                seen_emission: auto.oidn == regularize::OidnUse::Frames,
+                ..Default::default()
+            }
+            .with_albedo(scene, medium, target_albedo * auto.factor),
+        ),
     };
     let fixed: Vec<SequenceRun> = opts
         .difference_factors
@@ -145,15 +157,8 @@ fn sequence_spp(ctx: &SceneRun, run: &mut TableRun, sequence: &SequenceRun) -> R
             let probe = regularize::regularize(&ctx.scene, &probe_shot, &sequence.options)
                 .map_err(|e| anyhow!("{e}"))?;
             let t = &probe.timings;
-            // A pipeline picked for denoising less spends what it saves on samples
-            // (`pick`): the budget leaves room for the split's denoising.
-            let saved = probe
-                .pipeline_check
-                .as_ref()
-                .map_or(0.0, |c| c.denoise_seconds.saved_on_target(c.chosen));
             let o = t.denoise_and_predict
                 + t.frame_denoise
-                + saved
                 + (t.pilot + t.check) / probe.frames_rendered as f64;
             run.overheads.push((name.to_string(), method, o));
             o
