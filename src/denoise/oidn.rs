@@ -10,6 +10,15 @@
 //!    0.2.1 wheel, which ships the library and the TBB it needs.
 //! 4. The system's library path (`libOpenImageDenoise.so.1`).
 //!
+//! Determinism: for HDR input OIDN 1.4 scales the colour by an exposure it computes
+//! itself (`getAutoexposure`, core/color.cpp) with a `tbb::parallel_reduce` float sum,
+//! whose order follows TBB's work stealing: the same input then gave outputs differing by
+//! up to 5e-5 relative in about half of the calls of one process. The same exposure is
+//! computed here, sequentially, and passed as `inputScale` ([`autoexposure`]); the rest
+//! of the filter gave the same bits on repeated calls, with 1 or 2 threads
+//! (`OIDN_NUM_THREADS`) and with FTZ/DAZ set on the calling thread (on AVX-512; another
+//! instruction set may round differently).
+//!
 //! TBB: OIDN needs `libtbb.so.12`. Where a `libtbb.so.12*` lies beside the library (as in
 //! the wheel) it is loaded first, so the dynamic loader finds it by its soname; else the
 //! system's (Debian's `libtbb12`).
@@ -85,6 +94,7 @@ struct Api {
         usize,
     ),
     set_filter_1b: unsafe extern "C" fn(Handle, *const c_char, bool),
+    set_filter_1f: unsafe extern "C" fn(Handle, *const c_char, f32),
     commit_filter: unsafe extern "C" fn(Handle),
     execute_filter: unsafe extern "C" fn(Handle),
     release_filter: unsafe extern "C" fn(Handle),
@@ -195,6 +205,7 @@ fn open(path: Option<&Path>) -> Result<Oidn, OidnError> {
         new_filter: sym!("oidnNewFilter"),
         set_shared_filter_image: sym!("oidnSetSharedFilterImage"),
         set_filter_1b: sym!("oidnSetFilter1b"),
+        set_filter_1f: sym!("oidnSetFilter1f"),
         commit_filter: sym!("oidnCommitFilter"),
         execute_filter: sym!("oidnExecuteFilter"),
         release_filter: sym!("oidnReleaseFilter"),
@@ -288,13 +299,28 @@ impl Oidn {
     }
 
     /// OIDN's `RT` filter on a width × height HDR colour image (linear, non-negative,
-    /// finite), with the auxiliary images where given. Returns the denoised image.
+    /// finite), with the auxiliary images where given. Returns the denoised image, the
+    /// same bits for the same input (the input scale is [`autoexposure`]'s).
     pub fn denoise_rt(
         &self,
         width: usize,
         height: usize,
         color: &[[f32; 3]],
         aux: Option<Aux>,
+    ) -> Result<Vec<[f32; 3]>, OidnError> {
+        let scale = autoexposure(width, height, color);
+        self.denoise_rt_scaled(width, height, color, aux, scale)
+    }
+
+    /// `denoise_rt` with OIDN's `inputScale`; NaN lets OIDN compute it (its parallel sum:
+    /// not reproducible, see the module comment).
+    fn denoise_rt_scaled(
+        &self,
+        width: usize,
+        height: usize,
+        color: &[[f32; 3]],
+        aux: Option<Aux>,
+        input_scale: f32,
     ) -> Result<Vec<[f32; 3]>, OidnError> {
         let n = width * height;
         let check = |name: &str, img: &[[f32; 3]], non_negative: bool| {
@@ -363,6 +389,7 @@ impl Oidn {
             }
             share(&name("output"), output.as_mut_ptr() as *mut c_void);
             (api.set_filter_1b)(filter, c"hdr".as_ptr(), true);
+            (api.set_filter_1f)(filter, c"inputScale".as_ptr(), input_scale);
             (api.commit_filter)(filter);
             let committed = self.check(&device);
             if committed.is_ok() {
@@ -376,5 +403,95 @@ impl Oidn {
             return Err(OidnError::Failed("the output has NaN or Inf".into()));
         }
         Ok(output)
+    }
+}
+
+/// OIDN 1.4.3's HDR exposure (`getAutoexposure`, core/color.cpp): the image cut into
+/// about 16×16-pixel blocks, key 0.18 over 2 to the mean log2 of the blocks' mean
+/// luminances above 1e-8; 1 where there is none. Summed in order, in f64, so that it is
+/// the same for the same image (OIDN's f32 parallel sum differs in its last bits).
+pub fn autoexposure(width: usize, height: usize, color: &[[f32; 3]]) -> f32 {
+    const KEY: f64 = 0.18;
+    const EPS: f32 = 1e-8;
+    const K: usize = 16;
+    let (hk, wk) = ((height + K / 2) / K, (width + K / 2) / K);
+    let (mut sum, mut count) = (0f64, 0usize);
+    for i in 0..hk {
+        let (h0, h1) = (i * height / hk, (i + 1) * height / hk);
+        for j in 0..wk {
+            let (w0, w1) = (j * width / wk, (j + 1) * width / wk);
+            let mut l = 0f64;
+            for row in color[h0 * width..h1 * width].chunks_exact(width) {
+                for c in &row[w0..w1] {
+                    // OIDN's luminance weights (color.isph).
+                    let y = 0.212671f32 * c[0] + 0.715160f32 * c[1] + 0.072169f32 * c[2];
+                    l += y as f64;
+                }
+            }
+            let l = (l / ((h1 - h0) * (w1 - w0)) as f64) as f32;
+            if l > EPS {
+                sum += (l as f64).log2();
+                count += 1;
+            }
+        }
+    }
+    if count == 0 {
+        return 1.0;
+    }
+    (KEY / (sum / count as f64).exp2()) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deterministic noisy HDR image: a ramp times uniform noise, some values above 1.
+    fn noisy(width: usize, height: usize, seed: u64) -> Vec<[f32; 3]> {
+        let mut s = seed;
+        let mut uniform = move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        };
+        (0..width * height)
+            .map(|i| {
+                let ramp = 2.0 * (i % width) as f32 / width as f32;
+                [
+                    3.0 * ramp * uniform(),
+                    ramp * uniform(),
+                    5.0 * uniform() * uniform(),
+                ]
+            })
+            .collect()
+    }
+
+    /// The exposure passed to OIDN is its own, to its rounding: the output with it is
+    /// the output OIDN's own computation gives (which differs from itself by up to 5e-5).
+    #[test]
+    fn the_exposure_is_oidns_own() {
+        let lib = load().unwrap_or_else(|e| panic!("{e}"));
+        for (w, h) in [(160, 120), (37, 29), (300, 17)] {
+            let color = noisy(w, h, w as u64);
+            let ours = lib.denoise_rt(w, h, &color, None).unwrap();
+            let oidns = lib.denoise_rt_scaled(w, h, &color, None, f32::NAN).unwrap();
+            for (a, b) in ours.iter().flatten().zip(oidns.iter().flatten()) {
+                assert!(
+                    (a - b).abs() <= 2e-4 * b.abs() + 1e-7,
+                    "{w}x{h}: {a} vs {b}"
+                );
+            }
+        }
+        // Darker input, a larger scale: proportional, by its definition.
+        let color = noisy(64, 64, 3);
+        let dim: Vec<[f32; 3]> = color.iter().map(|p| p.map(|v| v / 8.0)).collect();
+        let ratio = autoexposure(64, 64, &dim) / autoexposure(64, 64, &color);
+        assert!((ratio - 8.0).abs() < 1e-4, "{ratio}");
+        assert_eq!(autoexposure(64, 64, &vec![[0.0; 3]; 64 * 64]), 1.0);
+        assert_eq!(
+            autoexposure(7, 7, &color[..49]),
+            1.0,
+            "fewer than half a block"
+        );
     }
 }
