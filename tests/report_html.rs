@@ -41,30 +41,44 @@ fn a_generated_report_shows_every_image() {
     let dir = std::env::temp_dir().join(format!("mediareg_report_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let table = dir.join("table");
+    // A copy of the references, to replace one below.
+    let refs = dir.join("reference");
+    std::fs::create_dir_all(&refs).unwrap();
+    for f in ["cube.json", "cube.exr", "cube_var.exr"] {
+        std::fs::copy(
+            common::root().join("reference/table_small").join(f),
+            refs.join(f),
+        )
+        .unwrap();
+    }
     let bin = env!("CARGO_BIN_EXE_mediareg");
     let o = Command::new(bin)
         .current_dir(common::root())
         .args([
             "table", "--scenes", "cube", "-D", "res=32", "--budget", "0.3",
         ])
-        .args(["--frames", "3", "--reference-dir", "reference/table_small"])
+        .args(["--frames", "3", "--reference-dir"])
+        .arg(&refs)
         .args(["--seeds", "2", "--no-mitsuba", "--out"])
         .arg(&table)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let page = dir.join("index.html");
-    let o = Command::new(bin)
-        .current_dir(common::root())
-        .arg("report")
-        .arg("--table")
-        .arg(&table)
-        .arg("--figures")
-        .arg(dir.join("no_figures"))
-        .arg("-o")
-        .arg(&page)
-        .output()
-        .unwrap();
+    let report = || {
+        Command::new(bin)
+            .current_dir(common::root())
+            .arg("report")
+            .arg("--table")
+            .arg(&table)
+            .arg("--figures")
+            .arg(dir.join("no_figures"))
+            .arg("-o")
+            .arg(&page)
+            .output()
+            .unwrap()
+    };
+    let o = report();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let html = std::fs::read_to_string(&page).unwrap();
     // The reference, the first seed's frame rows (volpath, volpath_oidn where OIDN
@@ -84,6 +98,19 @@ fn a_generated_report_shows_every_image() {
             "a missing image must count as not loaded"
         );
     }
+    // A reference replaced after the table (one byte of its EXR changed) is refused.
+    let exr = refs.join("cube.exr");
+    let mut bytes = std::fs::read(&exr).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&exr, bytes).unwrap();
+    let o = report();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "a replaced reference was shown");
+    assert!(
+        stderr.contains("cube.exr has sha256") && stderr.contains("mitsuba_reference.py"),
+        "{stderr}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

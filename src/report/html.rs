@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 
 use super::output::{interval, paper_cells, summaries_of, RunInfo, PAPER_HEADER};
+use super::reference::read_reference_images;
 use super::table::{Method, Row};
 use crate::image;
 use crate::image::Image;
@@ -179,7 +180,14 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
     for s in &scenes {
         let scene_rows: Vec<&Row> = rows.iter().filter(|r| r.scene == *s).collect();
         let reference_exr = table_abs.join(&scene_rows[0].reference);
-        let reference = image::read_exr(&reference_exr)?;
+        // Checked against its JSON's images_sha256 again: the report may be made long
+        // after the table, from a reference replaced since.
+        let name = (reference_exr.file_stem())
+            .with_context(|| format!("{}: no reference name", reference_exr.display()))?;
+        let (reference, _, _) = read_reference_images(
+            reference_exr.parent().unwrap_or(Path::new(".")),
+            &name.to_string_lossy(),
+        )?;
         let volpath = scene_rows
             .iter()
             .find(|r| r.method == Method::Volpath)

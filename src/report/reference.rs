@@ -258,8 +258,8 @@ mod tests {
     }
 
     /// The committed images load; either one replaced by an image of ours (the same
-    /// size, 0.1% off) is refused naming the file, its JSON and how to regenerate it;
-    /// a JSON that records no sha256 of its images is refused too.
+    /// size, 0.1% off) or with one byte changed is refused naming the file, its JSON and
+    /// how to regenerate it; a JSON that records no sha256 of its images is refused too.
     #[test]
     fn reference_images_must_be_the_ones_the_script_wrote() {
         let dir = films_copy("intact");
@@ -283,6 +283,26 @@ mod tests {
             ] {
                 assert!(e.contains(part), "{file}: no \"{part}\" in: {e}");
             }
+        }
+
+        // Through Reference::load (what `mediareg table` runs): one byte of either image
+        // changed is refused, the intact copy loads.
+        let xml_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("mitsuba_scenes/films.xml");
+        let load = xml::LoadOptions::default();
+        let desc = xml::load_file(&xml_path, &load).unwrap();
+        let reference = |dir: &Path| Reference::load(dir, "films", &xml_path, &load, &desc);
+        assert!(reference(&films_copy("loaded")).is_ok());
+        for file in ["films.exr", "films_var.exr"] {
+            let dir = films_copy(&format!("byte_{file}"));
+            let mut bytes = std::fs::read(dir.join(file)).unwrap();
+            let mid = bytes.len() / 2;
+            bytes[mid] ^= 1;
+            std::fs::write(dir.join(file), bytes).unwrap();
+            let e = format!(
+                "{:#}",
+                reference(&dir).err().expect("a changed byte loaded")
+            );
+            assert!(e.contains(&format!("{file} has sha256")), "{e}");
         }
 
         let dir = films_copy("unrecorded");
