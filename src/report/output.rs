@@ -149,6 +149,7 @@ fn budget_text(b: Budget) -> String {
     match b {
         Budget::Seconds(s) => format!("equal time: {s} s per method (per frame for the sequence)"),
         Budget::Spp(n) => format!("equal spp: {n} per method (per frame for the sequence)"),
+        Budget::PaperSpp => "the paper's spp: path tracing's for the baselines, the method's per frame for the sequences (its Table 1)".into(),
     }
 }
 

@@ -51,6 +51,9 @@ pub enum Budget {
     Seconds(f64),
     /// Equal samples per pixel (per frame for the regularized sequence).
     Spp(u32),
+    /// The paper's sample counts (its Table 1): path tracing's for the baselines, the
+    /// method's per frame for the sequences.
+    PaperSpp,
 }
 
 #[derive(Clone, Debug)]
@@ -225,6 +228,11 @@ pub fn run_table(opts: &TableOptions) -> Result<TableRun> {
             bail!("--budget {b}: must be a positive number of seconds")
         }
         Budget::Spp(0) => bail!("--spp must be at least 1"),
+        Budget::PaperSpp => {
+            if let Some(s) = opts.scenes.iter().find(|s| table1_row(s).is_none()) {
+                bail!("--paper-spp: the paper's Table 1 has no row for {s} (it has bunny, candle, lucy)")
+            }
+        }
         _ => {}
     }
     std::fs::create_dir_all(&opts.out)
@@ -420,7 +428,7 @@ impl<'a> SceneRun<'a> {
                 (b / 10.0).min(1.0),
                 self.seed.wrapping_add(1_000_000),
             )),
-            Budget::Spp(_) => None,
+            Budget::Spp(_) | Budget::PaperSpp => None,
         }
     }
 
@@ -493,7 +501,7 @@ fn run_baselines(ctx: &SceneRun, run: &mut TableRun) -> Result<Baselines> {
     if !ctx.skip(Method::Volpath) {
         let spp = match volpath_per_spp {
             Some(per_spp) => spp_for(budget_seconds(opts.budget), per_spp),
-            None => budget_spp(opts.budget),
+            None => budget_spp(opts.budget, ctx.name, false),
         };
         let r = render(scene, &scene.shot.with(spp, seed), &ctx.with_seen);
         let out = MethodImage::baseline(
@@ -518,7 +526,7 @@ fn run_baselines(ctx: &SceneRun, run: &mut TableRun) -> Result<Baselines> {
     if let Some(t_oidn) = oidn_seconds {
         let spp = match volpath_per_spp {
             Some(per_spp) => spp_for(budget_seconds(opts.budget) - t_oidn, per_spp),
-            None => budget_spp(opts.budget),
+            None => budget_spp(opts.budget, ctx.name, false),
         };
         let shot = scene.shot.with(spp, seed.wrapping_add(10));
         let r = render(scene, &shot, &ctx.with_seen);
@@ -647,7 +655,7 @@ fn run_mitsuba(ctx: &SceneRun, run: &mut TableRun) -> Result<()> {
         .join(format!("{}_mitsuba_volpath{}.exr", ctx.tag, ctx.suffix));
     let (spp, budget) = match opts.budget {
         Budget::Seconds(b) => (None, Some(b)),
-        Budget::Spp(n) => (Some(n), None),
+        Budget::Spp(_) | Budget::PaperSpp => (Some(budget_spp(opts.budget, name, false)), None),
     };
     ctx.log("mitsuba_volpath: rendering".into());
     let request = MitsubaRequest {
@@ -730,13 +738,17 @@ pub fn default_options(opts: &TableOptions, sequence: &regularize::Options) -> r
 fn budget_seconds(b: Budget) -> f64 {
     match b {
         Budget::Seconds(s) => s,
-        Budget::Spp(_) => unreachable!("only called with a time budget"),
+        Budget::Spp(_) | Budget::PaperSpp => unreachable!("only called with a time budget"),
     }
 }
 
-fn budget_spp(b: Budget) -> u32 {
-    match b {
-        Budget::Spp(n) => n,
-        Budget::Seconds(_) => unreachable!("only called with an spp budget"),
+/// The spp of `scene`'s baselines, or per frame of its sequences, at an spp budget.
+fn budget_spp(b: Budget, scene: &str, sequence: bool) -> u32 {
+    match (b, table1_row(scene)) {
+        (Budget::Spp(n), _) => n,
+        (Budget::PaperSpp, Some(row)) if sequence => row.ours_spp,
+        (Budget::PaperSpp, Some(row)) => row.pt_spp,
+        (Budget::PaperSpp, None) => unreachable!("run_table checks the scenes"),
+        (Budget::Seconds(_), _) => unreachable!("only called with an spp budget"),
     }
 }

@@ -71,6 +71,14 @@ pub struct TableArgs {
     /// Equal spp instead of equal time.
     #[arg(long)]
     pub spp: Option<u32>,
+    /// The paper's spp instead of equal time: path tracing 200 / 1300 / 350 spp, the
+    /// method 256 / 2048 / 512 per frame (Bunny / Candle / Lucy, its Table 1).
+    #[arg(long, conflicts_with_all = ["spp", "budget"])]
+    pub paper_spp: bool,
+    /// Only these methods (volpath, volpath_oidn, volpath_filtered, regularized_paper,
+    /// regularized_spatial, regularized; default: all).
+    #[arg(long, value_delimiter = ',')]
+    pub methods: Vec<String>,
     /// Output folder (default: out/table, or out/figures for `figures`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -223,6 +231,8 @@ pub fn table_options(args: TableArgs, default_out: &str) -> Result<TableOptions>
         scenes,
         budget,
         spp,
+        paper_spp,
+        methods,
         out,
         scene_dir,
         reference_dir,
@@ -261,9 +271,10 @@ pub fn table_options(args: TableArgs, default_out: &str) -> Result<TableOptions>
         reference_dir,
         search,
         params: parse_defines(&define)?,
-        budget: match spp {
-            Some(n) => Budget::Spp(n),
-            None => Budget::Seconds(budget),
+        budget: match (spp, paper_spp) {
+            (_, true) => Budget::PaperSpp,
+            (Some(n), _) => Budget::Spp(n),
+            (None, _) => Budget::Seconds(budget),
         },
         out: out.unwrap_or_else(|| PathBuf::from(default_out)),
         frames,
@@ -273,7 +284,7 @@ pub fn table_options(args: TableArgs, default_out: &str) -> Result<TableOptions>
         factor,
         mitsuba,
         difference_factors: Vec::new(),
-        skip: vec![Method::RegularizedSpatial],
+        skip: skipped(&methods)?,
         seed,
         seeds,
         still: !no_still,
@@ -281,6 +292,36 @@ pub fn table_options(args: TableArgs, default_out: &str) -> Result<TableOptions>
         write_png: !no_png,
         verbose: true,
     })
+}
+
+/// The methods a table run skips: all but `only` where it names some, else the
+/// single-frame spatial variant (the figures' business).
+fn skipped(only: &[String]) -> Result<Vec<Method>> {
+    let all = [
+        Method::Volpath,
+        Method::VolpathOidn,
+        Method::VolpathFiltered,
+        Method::RegularizedPaper,
+        Method::RegularizedSpatial,
+        Method::Regularized,
+    ];
+    if only.is_empty() {
+        return Ok(vec![Method::RegularizedSpatial]);
+    }
+    for name in only {
+        if !all.iter().any(|m| m.as_str() == name) {
+            let names: Vec<&str> = all.iter().map(|m| m.as_str()).collect();
+            bail!(
+                "--methods {name}: not a table method (one of {})",
+                names.join(", ")
+            );
+        }
+    }
+    Ok(all
+        .into_iter()
+        .filter(|m| !only.iter().any(|n| n == m.as_str()))
+        .chain([Method::RegularizedDifference])
+        .collect())
 }
 
 pub fn fmt3(v: Vec3) -> String {

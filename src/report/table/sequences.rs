@@ -141,7 +141,7 @@ fn sequence_runs(
 fn sequence_spp(ctx: &SceneRun, run: &mut TableRun, sequence: &SequenceRun) -> Result<u32> {
     let (name, method) = (ctx.name, sequence.method);
     let Some(per_spp) = sequence.per_spp else {
-        return Ok(budget_spp(ctx.opts.budget));
+        return Ok(budget_spp(ctx.opts.budget, name, true));
     };
     // The denoising and prediction cost comes out of the frame's budget: measured on a
     // 1-spp run of the same pipeline (at the scene's first seed; the others reuse it).
