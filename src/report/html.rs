@@ -255,6 +255,7 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
             }
         }
     }
+    sweep_section(&mut html, table_dir, &page_abs)?;
     if !run.notes.is_empty() {
         html.push_str("<h2>Notes</h2>\n<ul>\n");
         for n in &run.notes {
@@ -267,6 +268,45 @@ pub fn write_report(out: &Path, table_dir: &Path, figures_dir: &Path) -> Result<
     );
     std::fs::write(out, html).with_context(|| format!("cannot write {}", out.display()))?;
     Ok(out.to_path_buf())
+}
+
+/// The budget sweep (`mediareg sweep`, `sweep.json` beside the table), where it ran:
+/// its plots, one per scene and accounting.
+fn sweep_section(html: &mut String, table_dir: &Path, page_abs: &Path) -> Result<()> {
+    let json = table_dir.join("sweep.json");
+    if !json.exists() {
+        return Ok(());
+    }
+    let dir =
+        std::fs::canonicalize(table_dir).with_context(|| format!("{}", table_dir.display()))?;
+    let mut plots: Vec<PathBuf> = std::fs::read_dir(&dir)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            name.starts_with("sweep_") && name.ends_with(".png")
+        })
+        .collect();
+    plots.sort();
+    html.push_str("<h2>Across budgets</h2>\n<p>Every method at five budgets per frame, 3 seeds each, at 128×128 against 128×128 references (<code>mediareg sweep</code>): mean corrected MSE against the seconds charged, log–log, with a band of two standard errors over the seeds. Numbers: ");
+    writeln!(
+        html,
+        "<a href=\"{}\">sweep.json</a>.</p>",
+        rel(&dir.join("sweep.json"), page_abs)
+    )?;
+    for png in plots {
+        let name = png
+            .file_stem()
+            .and_then(|n| n.to_str())
+            .unwrap_or("")
+            .to_string();
+        writeln!(
+            html,
+            "<figure class=\"plot\"><img src=\"{}\" alt=\"{name}\"><figcaption>{}</figcaption></figure>",
+            rel(&png, page_abs),
+            esc(&name.replacen("sweep_", "", 1).replace('_', ", "))
+        )?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

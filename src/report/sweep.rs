@@ -125,7 +125,7 @@ pub fn run_sweep(opts: &SweepOptions, threads: Option<usize>) -> Result<PathBuf>
                 };
                 let job = SceneJob {
                     scene: scene.clone(),
-                    reference: format!("{scene}_res{}", opts.res),
+                    reference: reference_name(&opts.reference_dir, scene, opts.res),
                     tag: format!("{scene}_{budget}s"),
                 };
                 run_scene(&job, &point, &mut run)?;
@@ -172,6 +172,16 @@ pub fn run_sweep(opts: &SweepOptions, threads: Option<usize>) -> Result<PathBuf>
     data.seconds = started.elapsed().as_secs_f64();
     write_json(&json, &data)?;
     Ok(json)
+}
+
+/// `NAME_resRES` where the folder has it (the figures' references), else `NAME`: either
+/// way the reference's JSON must record `res` = RES (`Reference::load` checks it).
+fn reference_name(dir: &Path, scene: &str, res: u32) -> String {
+    let sized = format!("{scene}_res{res}");
+    match dir.join(format!("{sized}.exr")).exists() {
+        true => sized,
+        false => scene.to_string(),
+    }
 }
 
 fn median(v: &mut [f64]) -> f64 {

@@ -83,11 +83,7 @@ pub struct SweepArgs {
     #[command(flatten)]
     pub table: TableArgs,
     /// Seconds per method and frame.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "0.16,0.32,0.64,1.28,2.56"
-    )]
+    #[arg(long, value_delimiter = ',', default_value = "0.2,0.4,0.8,1.6,3.2")]
     pub budgets: Vec<f64>,
     /// Resolution (`-D res=`), with references made for it.
     #[arg(long, default_value_t = 128)]
