@@ -1,8 +1,10 @@
 //! Issue 41, item 5: with one frame and OIDN, `regularize` is plain volpath, through OIDN
 //! where the check of `regularize::fallback` finds that OIDN lowers the error. The check
-//! must keep plain volpath on two scenes where OIDN raises the error and keep OIDN on two
-//! where it lowers it, each verified against the scene's Mitsuba 3 reference; below the
-//! check's sample count the output is `render --denoise oidn`'s, bit for bit.
+//! must keep plain volpath where OIDN raises the error (a camera in a medium, a
+//! max_depth cut-off, the furnace) and keep OIDN where it lowers it (a chromatic sphere, a
+//! medium in glass, a mesh, the cloud), each verified against the scene's Mitsuba 3
+//! reference (issue 57); below the check's sample count the output is `render --denoise
+//! oidn`'s, bit for bit.
 //!
 //! Needs the library (`scripts/fetch_oidn`, which `scripts/test` runs).
 
@@ -60,35 +62,56 @@ fn choice_and_truth(name: &str, spp: u32, seed: u64) -> (bool, bool, f64, f64, f
     )
 }
 
-/// The check's choice is right wherever one image is clearly better: the rule takes no
-/// margin (`regularize::fallback`), so where the two errors are within its noise it may
-/// pick either, at little cost. Here a wrong choice passes only where it costs at most
-/// a quarter of the better image's MSE. The furnace is such a near tie (OIDN's error
-/// 7–25% above plain volpath's, the check's standard error about three times the
-/// difference): over six seeds the check picked OIDN on one, with the scalar paths and
-/// with the packets alike (on different seeds); the other scenes differ by 1.3× to 150×.
+/// (scene, spp, whether OIDN lowers the error there, the near-tie allowance): the check
+/// must choose the better image. The rule takes no margin (`regularize::fallback`), so
+/// where the two errors are within its noise of each other it may pick either at little
+/// cost: there a wrong choice passes if it costs at most the allowance × the better
+/// image's MSE. OIDN ÷ plain MSE measured at these spp over seeds 1–6 (this test's seeds
+/// are 1 and 2; `measure_false_alarms_and_power` in `tests/regularize_never_loses.rs`
+/// with `NEVER_LOSES_SEEDS=6 NEVER_LOSES_CASES=...`) in the comments.
+const CASES: &[(&str, u32, bool, Option<f64>)] = &[
+    // 1.04–1.17, the check's standard error about three times the difference: it picked
+    // OIDN on seed 2 (1.14; the scalar paths on seed 4, docs/performance_history.md). The
+    // one near tie.
+    ("furnace", 1024, false, Some(1.25)),
+    // 103–156.
+    ("camera_in_medium", 1024, false, None),
+    // 2.12–2.39.
+    ("max_depth_directional", 1024, false, None),
+    // 0.70–0.87.
+    ("chromatic_sphere", 1024, true, None),
+    // 0.13–0.38.
+    ("medium_in_dielectric", 1024, true, None),
+    // A mesh (the Stanford Bunny, from `.cache/meshes`): 0.19–0.21. 256 spp here and for
+    // the cloud, whose samples cost more (the Bunny's 5–15× the analytic scenes').
+    ("bunny_medium", 256, true, None),
+    // A heterogeneous medium: 0.13–0.74, the plain image's error varying most.
+    ("cloud", 256, true, None),
+];
+
 #[test]
 fn the_check_keeps_plain_volpath_where_oidn_raises_the_error_and_oidn_where_it_lowers_it() {
-    for (name, spp, want_oidn) in [
-        ("furnace", 1024, false),
-        ("camera_in_medium", 1024, false),
-        ("chromatic_sphere", 1024, true),
-        ("medium_in_dielectric", 1024, true),
-    ] {
+    // Every scene is run and every wrong one named.
+    let mut wrong = Vec::new();
+    for &(name, spp, want_oidn, tie) in CASES {
         for seed in [1, 2] {
             let (chose, truth, plain, oidn, se) = choice_and_truth(name, spp, seed);
-            assert_eq!(
-                truth, want_oidn,
-                "{name} seed {seed}: the scene no longer tests what it is here for (MSE plain {plain:.3e}, OIDN {oidn:.3e})"
-            );
-            let near_tie = oidn.max(plain) <= 1.25 * oidn.min(plain);
-            assert!(
-                chose == want_oidn || near_tie,
-                "{name} seed {seed}: the check chose {} (MSE plain {plain:.3e}, OIDN {oidn:.3e}, the check's standard error {se:.1e})",
-                if chose { "OIDN" } else { "plain" }
-            );
+            let errors = format!("MSE plain {plain:.3e}, OIDN {oidn:.3e}");
+            if truth != want_oidn {
+                wrong.push(format!(
+                    "{name} seed {seed}: the scene no longer tests what it is here for ({errors})"
+                ));
+            }
+            let near_tie = tie.is_some_and(|t| oidn.max(plain) <= t * oidn.min(plain));
+            if chose != want_oidn && !near_tie {
+                wrong.push(format!(
+                    "{name} seed {seed}: the check chose {} ({errors}, the check's standard error {se:.1e})",
+                    if chose { "OIDN" } else { "plain" }
+                ));
+            }
         }
     }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }
 
 #[test]
