@@ -111,19 +111,27 @@ fn table_files_agree_with_the_images_they_name() {
         .unwrap();
     assert_eq!(seq.sequence_frames, Some(5));
     assert!(seq.sequence_seconds.unwrap() >= seq.seconds);
-    // The still accounting charges the same image the whole sequence.
-    let still = rows
-        .iter()
-        .find(|r| {
-            r.method == Method::Regularized
-                && r.accounting == Accounting::Still
-                && r.seed == seq.seed
-        })
-        .unwrap();
+    let row_of = |method: Method, accounting: Accounting| {
+        rows.iter()
+            .find(|r| r.method == method && r.accounting == accounting && r.seed == seq.seed)
+    };
+    // The still accounting charges the control's image the whole sequence.
+    let control = row_of(Method::VolpathFiltered, Accounting::Frame).unwrap();
+    let control_still = row_of(Method::VolpathFiltered, Accounting::Still).unwrap();
     assert_eq!(
-        (still.image.as_str(), still.seconds),
-        (seq.image.as_str(), seq.sequence_seconds.unwrap())
+        (control_still.image.as_str(), control_still.seconds),
+        (control.image.as_str(), control.sequence_seconds.unwrap())
     );
+    // The default's still row is `regularize --frames 1` at that time (with OIDN): an
+    // image of its own, with more samples than a frame of the sequence.
+    match (oidn, row_of(Method::Regularized, Accounting::Still)) {
+        (true, Some(still)) => {
+            assert!(still.image.ends_with("regularized_still.exr"), "{}", still.image);
+            assert!(still.spp > seq.spp, "{} ≤ {}", still.spp, seq.spp);
+        }
+        (false, None) => {}
+        (oidn, still) => panic!("OIDN {oidn}, the default's still row {still:?}"),
+    }
 
     // The summaries: means over the seeds, ratios and the best baseline.
     let summaries: Vec<Summary> =
