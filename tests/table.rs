@@ -126,7 +126,11 @@ fn table_files_agree_with_the_images_they_name() {
     // image of its own, with more samples than a frame of the sequence.
     match (oidn, row_of(Method::Regularized, Accounting::Still)) {
         (true, Some(still)) => {
-            assert!(still.image.ends_with("regularized_still.exr"), "{}", still.image);
+            assert!(
+                still.image.ends_with("regularized_still.exr"),
+                "{}",
+                still.image
+            );
             assert!(still.spp > seq.spp, "{} ≤ {}", still.spp, seq.spp);
         }
         (false, None) => {}
