@@ -342,6 +342,16 @@ struct Filtered {
     mean_frames: f64,
 }
 
+/// Frames blended per pixel, averaged over `pixels` pixels: the target frame, and each
+/// earlier frame where the pixel reprojects into it.
+fn mean_frames(maps: &[Reprojection], pixels: usize) -> f64 {
+    let found: usize = maps
+        .iter()
+        .map(|m| m.iter().filter(|p| p.is_some()).count())
+        .sum();
+    1.0 + found as f64 / pixels as f64
+}
+
 /// A `width` × `height` image of `pixels`.
 fn as_image(width: usize, height: usize, pixels: Vec<[f32; 3]>) -> Image {
     Image {
@@ -547,12 +557,7 @@ impl<'a> Run<'a> {
         let opts = self.opts;
         let (w, h) = (source.width, source.height);
         let maps = self.reprojections(w, h);
-        let mean_frames = 1.0
-            + maps
-                .iter()
-                .map(|m| m.iter().filter(|p| p.is_some()).count() as f64)
-                .sum::<f64>()
-                / (w * h) as f64;
+        let mean_frames = mean_frames(&maps, w * h);
         let frame_refs: Vec<&[[f32; 3]]> = gradients.iter().map(|g| g.pixels.as_slice()).collect();
         let blended = temporal::blend(&frame_refs, &maps, w, h, opts.w_a);
         let mut denoised = blended.clone();

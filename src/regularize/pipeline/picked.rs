@@ -22,12 +22,7 @@ impl Run<'_> {
 
         let started = Instant::now();
         let maps = self.reprojections(w, h);
-        let mean_frames = 1.0
-            + maps
-                .iter()
-                .map(|m| m.iter().filter(|p| p.is_some()).count() as f64)
-                .sum::<f64>()
-                / (w * h) as f64;
+        let mean_frames = mean_frames(&maps, w * h);
         let reprojecting = started.elapsed().as_secs_f64();
         self.bar.set_message("picking the pipeline");
         let checked = pick::check(&CheckInput {
