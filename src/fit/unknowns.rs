@@ -6,7 +6,7 @@
 use glam::Vec3;
 
 use crate::integrator::MediumParam;
-use crate::medium::{HomogeneousMedium, Phase};
+use crate::medium::{Medium, Phase};
 
 /// One number the fit adjusts: a parameter, all its channels or one of them.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -22,7 +22,7 @@ pub const G_LIMIT: f32 = 0.99;
 impl Unknown {
     /// The unknowns of `params` for the medium `m`: a chromatic sigma_t or albedo
     /// is fitted per channel.
-    pub fn of(m: &HomogeneousMedium, params: &[MediumParam]) -> Vec<Unknown> {
+    pub fn of(m: &Medium, params: &[MediumParam]) -> Vec<Unknown> {
         let grey = |v: Vec3| v.x == v.y && v.y == v.z;
         let mut out = Vec::new();
         for &param in params {
@@ -61,7 +61,7 @@ impl Unknown {
     }
 
     /// The value in `m` (channel 0 of a grey one).
-    pub fn value(&self, m: &HomogeneousMedium) -> f32 {
+    pub fn value(&self, m: &Medium) -> f32 {
         let c = self.channel.unwrap_or(0);
         match self.param {
             MediumParam::SigmaT => (m.sigma_t / m.scale)[c],
@@ -75,7 +75,7 @@ impl Unknown {
     }
 
     /// Sets the value in `m`, clamped to the parameter's range.
-    pub fn set(&self, m: &mut HomogeneousMedium, v: f32) {
+    pub fn set(&self, m: &mut Medium, v: f32) {
         let channels = match self.channel {
             None => 0..3,
             Some(c) => c..c + 1,

@@ -48,7 +48,6 @@ mod emitters;
 mod heterogeneous;
 mod lanes;
 mod paths;
-mod scatter;
 mod scene;
 mod shapes;
 

@@ -53,7 +53,7 @@ use glam::{Vec3, Vec3A};
 
 use super::sample::PathSample;
 use crate::geometry::SHADOW_EPSILON;
-use crate::medium::HomogeneousMedium;
+use crate::medium::Medium;
 use crate::sampling::mis_weight;
 use crate::sampling::Pcg32;
 use crate::scene::{Scene, ShapeInfo, SurfaceInteraction};
@@ -108,7 +108,7 @@ fn medium_emitter_sample(
     extinction: Option<u32>,
     rng: &mut Pcg32,
 ) -> Option<MediumLight> {
-    let m: &HomogeneousMedium = &scene.media[medium as usize];
+    let m: &Medium = &scene.media[medium as usize];
     // (Where no emitter sample can arrive, none is drawn: see Scene::emitters_unreachable.)
     if !m.sample_emitters || scene.emitters_unreachable[medium as usize] {
         return None;

@@ -10,7 +10,7 @@ use super::Builder;
 use crate::error::{Result, SceneError};
 use crate::medium::grid::Source;
 use crate::medium::majorant::MajorantGrid;
-use crate::medium::{HeterogeneousMedium, HomogeneousMedium};
+use crate::medium::{HeterogeneousMedium, Medium};
 use crate::xml::description::ObjId;
 
 impl Builder<'_> {
@@ -63,7 +63,7 @@ impl Builder<'_> {
         let phase = self.medium_phase(&p)?;
         let medium_id = p.obj.id.clone();
         p.finish("albedo, sigma_t, scale, sample_emitters, has_spectral_extinction, phase")?;
-        self.media.push(HomogeneousMedium {
+        self.media.push(Medium {
             albedo: Vec3::ONE,
             sigma_t: Vec3::splat(majorant),
             scale: scale as f32,

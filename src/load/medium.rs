@@ -7,7 +7,7 @@ use super::props::Props;
 use super::spectrum::SpectrumUse;
 use super::{unsupported, Builder};
 use crate::error::{Result, SceneError};
-use crate::medium::{HomogeneousMedium, Phase};
+use crate::medium::{Medium, Phase};
 use crate::xml::description::{ObjId, ObjectKind, Value};
 
 impl Builder<'_> {
@@ -95,7 +95,7 @@ impl Builder<'_> {
         let phase = self.medium_phase(&p)?;
         let medium_id = p.obj.id.clone();
         p.finish("albedo, sigma_t, scale, sample_emitters, has_spectral_extinction, phase")?;
-        self.media.push(HomogeneousMedium {
+        self.media.push(Medium {
             albedo,
             sigma_t: sigma_t * scale as f32,
             scale: scale as f32,

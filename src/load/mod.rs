@@ -30,7 +30,7 @@ use crate::emitter::Emitter;
 use crate::error::{Result, SceneError};
 use crate::geometry::mesh::RawMesh;
 use crate::geometry::shape::Geometry;
-use crate::medium::HomogeneousMedium;
+use crate::medium::Medium;
 use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, IntegratorSettings, Scene, SceneParts, ShapeInfo};
 use crate::xml::description::{ObjId, ObjectKind, SceneDescription};
@@ -46,7 +46,7 @@ struct Builder<'a> {
     desc: &'a SceneDescription,
     bsdfs: Vec<Bsdf>,
     bsdf_ids: HashMap<ObjId, u32>,
-    media: Vec<HomogeneousMedium>,
+    media: Vec<Medium>,
     medium_ids: HashMap<ObjId, u32>,
     geometries: Vec<Geometry>,
     /// Mesh files read so far, by (plugin, path, shape_index): read once, cloned per use.

@@ -17,10 +17,11 @@
 //! product of σ_n / σ̄ over tentative collisions, whose expectation is
 //! `exp(−∫ σ_t)` per channel (Mitsuba's volpath estimates it the same way).
 //!
-//! Where σ_t is a clamped grid, the majorant is local (`medium::majorant`): both walk
-//! the ray through a coarse grid of cells, drawing tentative collisions at each cell's
-//! own σ̄ (an exponential optical depth τ, spent cell by cell), with the weights above
-//! taken against that σ̄. Any majorant gives the same expectation.
+//! Both draw their tentative collisions by one loop over the ray's majorant segments
+//! (`medium::tracking`, pbrt-v4's `SampleT_maj`): where σ_t is a clamped grid the
+//! segments are the cells of its local majorants (`medium::majorant`), each at its own
+//! σ̄, with the weights above taken against that σ̄; elsewhere one segment over the
+//! span at the global σ̄. Any majorant gives the same expectation.
 //!
 //! A `homogeneous` medium whose albedo is a grid also lands here, with a constant
 //! unbounded σ_t: then σ̄ = σ_t for grey extinction and no null collision happens.
@@ -29,6 +30,7 @@ use glam::{Vec3, Vec3A};
 
 use super::grid::Volume;
 use super::majorant::{self, MajorantGrid};
+use super::tracking::{sample_t_maj, MajorantSegment, MajorantSegments};
 use crate::sampling::Pcg32;
 use crate::simd::{Float, Vector3};
 
@@ -149,72 +151,36 @@ impl HeterogeneousMedium {
         }
     }
 
-    /// Tentative collisions along `o + t d` within the span up to `tmax`, at the local
-    /// majorants where there are some, else at the global one: `collide(t, σ̄, rng)`
-    /// decides at each; the tracking ends with its answer, or None past the span.
+    /// The majorant segments of `o + t d` within the span up to `tmax` (pbrt-v4's
+    /// `SampleRay`): the cells of the local majorants where there are some, else the
+    /// span at the global one; none where the ray misses the medium or σ̄ = 0.
+    pub fn majorant_segments(&self, o: Vec3A, d: Vec3A, tmax: f32) -> MajorantSegments<'_> {
+        let span = self.span(o, d, tmax).filter(|_| self.majorant > 0.0);
+        match (span, &self.majorants) {
+            (Some(span), Some(grid)) => {
+                let (ol, dl) = majorant::to_local(&self.sigma_t, o, d);
+                MajorantSegments::Cells(grid.segments(ol, dl, span))
+            }
+            (span, _) => MajorantSegments::One(span.map(|(t_min, t_max)| MajorantSegment {
+                t_min,
+                t_max,
+                sigma_maj: self.majorant,
+            })),
+        }
+    }
+
+    /// Tentative collisions along `o + t d` within the span up to `tmax`, at the
+    /// majorant segments' rates: `collide(t, σ̄, rng)` decides at each; the tracking
+    /// ends with its answer, or None past the span.
     fn track<T>(
         &self,
         o: Vec3A,
         d: Vec3A,
         tmax: f32,
         rng: &mut Pcg32,
-        mut collide: impl FnMut(f32, f32, &mut Pcg32) -> Option<T>,
+        collide: impl FnMut(f32, f32, &mut Pcg32) -> Option<T>,
     ) -> Option<T> {
-        let (t0, t1) = self.span(o, d, tmax)?;
-        if self.majorant <= 0.0 {
-            return None;
-        }
-        if let Some(grid) = &self.majorants {
-            return self.walk_local(grid, o, d, (t0, t1), rng, collide);
-        }
-        let mut t = t0;
-        loop {
-            t = next_tentative(t, rng.next_1d(), self.majorant);
-            if t >= t1 {
-                return None;
-            }
-            if let Some(answer) = collide(t, self.majorant, rng) {
-                return Some(answer);
-            }
-        }
-    }
-
-    /// Tentative collisions along `o + t d` over [t0, t1] at the local majorants of
-    /// `grid`: an exponential optical depth τ spent cell by cell at each cell's σ̄, a
-    /// collision where it runs out, then a fresh τ. `collide(t, σ̄, rng)` decides at
-    /// each; the walk ends with its answer, or None at t1.
-    fn walk_local<T>(
-        &self,
-        grid: &MajorantGrid,
-        o: Vec3A,
-        d: Vec3A,
-        (t0, t1): (f32, f32),
-        rng: &mut Pcg32,
-        mut collide: impl FnMut(f32, f32, &mut Pcg32) -> Option<T>,
-    ) -> Option<T> {
-        let (ol, dl) = majorant::to_local(&self.sigma_t, o, d);
-        let mut walk = grid.dda(ol, dl, t0);
-        let mut t = t0;
-        let mut tau = optical_depth(rng);
-        loop {
-            let (cell, exit) = walk.cell();
-            let end = exit.min(t1).max(t);
-            let major = grid.at(cell);
-            while major > 0.0 && t + tau / major < end {
-                t += tau / major;
-                if let Some(answer) = collide(t, major, rng) {
-                    return Some(answer);
-                }
-                tau = optical_depth(rng);
-            }
-            if exit >= t1 {
-                return None;
-            }
-            // The rest of the cell spends σ̄ (end − t) of τ.
-            tau = (tau - major * (end - t)).max(0.0);
-            t = end;
-            walk.advance(grid.res());
-        }
+        sample_t_maj(self.majorant_segments(o, d, tmax), rng, collide)
     }
 }
 
@@ -230,25 +196,6 @@ fn segment_hash(o: Vec3A, d: Vec3A, len: f32) -> f32 {
         h ^= h >> 29;
     }
     (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
-}
-
-/// An exponential optical depth, −ln(1 − u): the distance to the next tentative
-/// collision in units of 1 / σ̄.
-#[inline]
-fn optical_depth(rng: &mut Pcg32) -> f32 {
-    optical_depth_of(rng.next_1d())
-}
-
-/// −ln(1 − u) for a path or lanes of paths (as `medium::sample_distance` at σ = 1).
-#[inline(always)]
-pub fn optical_depth_of<F: Float>(u: F) -> F {
-    (F::one() - u).ln().negate()
-}
-
-/// The next tentative collision after `t` at majorant σ̄, from uniform `u`.
-#[inline(always)]
-pub fn next_tentative<F: Float>(t: F, u: F, major: F) -> F {
-    t + optical_depth_of(u) / major
 }
 
 /// The probability that a tentative collision at σ_t is real: P = mean(σ_t) / σ̄

@@ -9,10 +9,14 @@
 //! volume's local space, where the ray's parameter t is the world's (the map is affine).
 //! The outer cells reach to infinity: a lookup outside the unit cube reads the clamped
 //! edge voxels, which those cells bound.
+//!
+//! A ray's walk yields its majorant segments (a cell's σ̄ and its stretch of the ray),
+//! which `medium::tracking` spends its optical depths along.
 
 use glam::Vec3A;
 
 use super::grid::{Filter, GridData, Source, Volume, Wrap};
+use crate::simd::Float;
 
 /// Cells per axis at most (pbrt-v4 uses 16³).
 const MAX_CELLS: usize = 16;
@@ -118,6 +122,94 @@ impl MajorantGrid {
             delta,
             step,
         }
+    }
+}
+
+/// A stretch of a ray over which σ̄ bounds the extinction (pbrt-v4's
+/// `RayMajorantSegment`), for one path or for lanes of paths.
+#[derive(Clone, Copy, Debug)]
+pub struct MajorantSegment<F> {
+    pub t_min: F,
+    pub t_max: F,
+    pub sigma_maj: F,
+}
+
+impl<F: Float> MajorantSegment<F> {
+    /// The next tentative collision after `t`, optical depth `tau` on at σ̄ (1), and
+    /// whether it lies within the segment.
+    #[inline(always)]
+    pub fn next_collision(&self, t: F, tau: F) -> (F, F::Mask) {
+        let next = t + tau / self.sigma_maj;
+        (next, next.lt(self.t_max))
+    }
+}
+
+/// A ray's majorant segments in order (pbrt-v4's `RayMajorantIterator`).
+pub enum MajorantSegments<'a> {
+    /// The medium's span at its global majorant, or nothing (no span, or σ̄ = 0).
+    One(Option<MajorantSegment<f32>>),
+    /// The cells of a majorant grid the ray crosses.
+    Cells(CellSegments<'a>),
+}
+
+impl Iterator for MajorantSegments<'_> {
+    type Item = MajorantSegment<f32>;
+
+    #[inline]
+    fn next(&mut self) -> Option<MajorantSegment<f32>> {
+        match self {
+            MajorantSegments::One(segment) => segment.take(),
+            MajorantSegments::Cells(cells) => cells.next(),
+        }
+    }
+}
+
+/// The majorant segments of a ray through a majorant grid: one a cell it crosses, from
+/// `t` up to `t_end` (the cells' σ̄ and where the ray leaves each).
+pub struct CellSegments<'a> {
+    grid: &'a MajorantGrid,
+    walk: Dda,
+    t: f32,
+    t_end: f32,
+    done: bool,
+}
+
+impl MajorantGrid {
+    /// The segments of the ray `o + t d` over [t0, t1], `o` and `d` in the volume's local
+    /// space.
+    pub fn segments(&self, o: Vec3A, d: Vec3A, (t0, t1): (f32, f32)) -> CellSegments<'_> {
+        CellSegments {
+            grid: self,
+            walk: self.dda(o, d, t0),
+            t: t0,
+            t_end: t1,
+            done: false,
+        }
+    }
+}
+
+impl Iterator for CellSegments<'_> {
+    type Item = MajorantSegment<f32>;
+
+    #[inline]
+    fn next(&mut self) -> Option<MajorantSegment<f32>> {
+        if self.done {
+            return None;
+        }
+        let (cell, exit) = self.walk.cell();
+        let end = exit.min(self.t_end).max(self.t);
+        let segment = MajorantSegment {
+            t_min: self.t,
+            t_max: end,
+            sigma_maj: self.grid.at(cell),
+        };
+        if exit >= self.t_end {
+            self.done = true;
+        } else {
+            self.walk.advance(self.grid.res);
+        }
+        self.t = end;
+        Some(segment)
     }
 }
 

@@ -13,6 +13,7 @@ pub mod grid;
 pub mod heterogeneous;
 pub mod majorant;
 pub mod phase;
+pub mod tracking;
 
 use glam::Vec3;
 
@@ -21,8 +22,11 @@ use crate::simd::{Float, Vector3};
 pub use heterogeneous::HeterogeneousMedium;
 pub use phase::Phase;
 
+/// A participating medium as the scene holds it (Mitsuba's `Medium`): the homogeneous
+/// case in full, or, where `heterogeneous` is set, the medium that varies in space with
+/// its majorant and global albedo factor here.
 #[derive(Clone, Debug)]
-pub struct HomogeneousMedium {
+pub struct Medium {
     /// Single-scattering albedo σ_s / σ_t, per channel, in [0, 1].
     pub albedo: Vec3,
     /// Extinction σ_t (already multiplied by `scale`), per channel, ≥ 0.
@@ -43,7 +47,7 @@ pub struct HomogeneousMedium {
     pub heterogeneous: Option<Box<HeterogeneousMedium>>,
 }
 
-impl HomogeneousMedium {
+impl Medium {
     /// Scattering coefficient σ_s = albedo · σ_t.
     #[inline]
     pub fn sigma_s(&self) -> Vec3 {
@@ -160,7 +164,7 @@ mod tests {
 
     #[test]
     fn free_flight_mean_is_one_over_sigma_t() {
-        let m = HomogeneousMedium {
+        let m = Medium {
             albedo: Vec3::splat(0.5),
             sigma_t: Vec3::new(2.0, 5.0, 0.0),
             scale: 1.0,

@@ -20,7 +20,7 @@ use crate::geometry::clearance::Clearance;
 use crate::geometry::convex::ConvexBoundary;
 use crate::geometry::shape::Geometry;
 use crate::geometry::Frame;
-use crate::medium::HomogeneousMedium;
+use crate::medium::Medium;
 use ray_log::RayLog;
 use shot::Shot;
 
@@ -78,7 +78,7 @@ pub struct Scene {
     pub emitters_unreachable: Vec<bool>,
     /// The environment emitter (a `constant`), seen by rays that miss.
     pub environment: Option<u32>,
-    pub media: Vec<HomogeneousMedium>,
+    pub media: Vec<Medium>,
     pub accel: Accel,
     /// How each shape treats shadow rays (by its BSDF), for [`Accel::crossings`].
     pub shadow_pass: Vec<ShadowPass>,

@@ -19,7 +19,7 @@ use crate::geometry::cuboid::Cuboid;
 use crate::geometry::shape::Geometry;
 use crate::geometry::Bounds;
 use crate::geometry::RAY_EPSILON;
-use crate::medium::HomogeneousMedium;
+use crate::medium::Medium;
 
 /// What a scene is made of, as plain objects: what `load` translates a file into, or
 /// what a test builds by hand. Indices tie them together: a [`ShapeInfo`] names its
@@ -32,7 +32,7 @@ pub struct SceneParts {
     pub emitters: Vec<Emitter>,
     /// The environment emitter (a `constant`), seen by rays that miss.
     pub environment: Option<u32>,
-    pub media: Vec<HomogeneousMedium>,
+    pub media: Vec<Medium>,
     /// The medium the sensor sits in.
     pub camera_medium: Option<u32>,
     pub shot: Shot,

@@ -5,8 +5,8 @@ use glam::Vec3;
 use wide::{CmpGt, CmpLt};
 
 use super::lanes::{draw_2d, lanes_of, mask_of, L, V3, WIDTH};
-use super::scatter;
 use super::scene::{LaneEmitter, PacketScene};
+use crate::geometry::shape::sample_sphere_cone;
 use crate::geometry::SHADOW_EPSILON;
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
@@ -127,7 +127,7 @@ pub fn sample_emitters(
             radiance,
         } => {
             let (u1, u2) = draw_2d(mask, rngs);
-            let c = scatter::sample_cone(center, radius, p, u1, u2);
+            let c = sample_cone(center, radius, p, u1, u2);
             let value = V3::splat(radiance).scale(c.ok.blend(L::ONE / c.pdf, L::ZERO));
             let out = lanes(c.d, c.dist, value, c.ok, c.pdf, false);
             let inside = mask & c.inside;
@@ -176,5 +176,40 @@ fn per_lane(scene: &Scene, p: V3, mask: L, (u1, u2): (L, L)) -> EmitterLanes {
         value,
         pdf: L::from(pdf),
         delta: mask_of(|k| delta[k]),
+    }
+}
+
+/// A direction toward a sphere from [`sample_cone`].
+pub struct ConeLanes {
+    /// Unit direction from the reference point.
+    pub d: V3,
+    /// Distance to where it meets the sphere.
+    pub dist: L,
+    /// Solid-angle pdf.
+    pub pdf: L,
+    /// The lanes whose point sees the sphere from outside and whose sample is valid
+    /// (the light's side faces it, the pdf is finite).
+    pub ok: L,
+    /// The lanes whose point is inside the sphere (deeper than the ray epsilon): the
+    /// scalar code samples its area there.
+    pub inside: L,
+}
+
+/// `geometry::shape::sample_sphere_cone` in lanes, with the lanes whose sample is valid.
+#[inline(always)]
+pub(super) fn sample_cone(center: Vec3, radius: f32, p: V3, u1: L, u2: L) -> ConeLanes {
+    let c = sample_sphere_cone(V3::splat(center), radius, p, u1, u2);
+    // The outward normal where it meets the sphere must face back along d.
+    let toward_center = V3::splat(center).sub(p).sub(c.d.scale(c.dist));
+    let ok = !c.inside
+        & c.dist.cmp_gt(L::ZERO)
+        & toward_center.dot(c.d).cmp_gt(L::ZERO)
+        & c.pdf.is_finite();
+    ConeLanes {
+        d: c.d,
+        dist: c.dist,
+        pdf: c.pdf,
+        ok,
+        inside: c.inside,
     }
 }

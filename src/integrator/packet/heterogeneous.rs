@@ -16,9 +16,10 @@ use wide::{i32x8, CmpGe, CmpLe, CmpLt};
 use super::lanes::{draw_1d, lanes_of, L, V3, WIDTH};
 use crate::medium::grid::{Filter, GridData, Source, Volume, Wrap};
 use crate::medium::heterogeneous::{
-    next_tentative, null_weight, ratio_roulette, ratio_weight, real_probability, real_weight,
-    HeterogeneousMedium, RATIO_SURVIVAL,
+    null_weight, ratio_roulette, ratio_weight, real_probability, real_weight, HeterogeneousMedium,
+    RATIO_SURVIVAL,
 };
+use crate::medium::tracking::{optical_depth, MajorantSegment};
 use crate::sampling::Pcg32;
 
 /// Where the lanes' free flights ended: a real collision (`collided`, at `t`, the
@@ -143,13 +144,13 @@ fn trilinear_clamped(v: &Volume, g: &GridData, p: V3, mask: L) -> V3 {
     value
 }
 
-/// Tentative collisions at rate σ̄ along the lanes' rays within the medium's span: the
+/// Tentative collisions along the lanes' rays within the medium's span, each lane's
+/// one majorant segment at the global σ̄ (`medium::tracking`'s step (1) in lanes): the
 /// part delta and ratio tracking share.
 struct Tracker {
     t: L,
-    t1: L,
     active: L,
-    majorant: L,
+    segment: MajorantSegment<L>,
     scale: L,
 }
 
@@ -158,25 +159,35 @@ impl Tracker {
         let (t, t1, some) = span(h, o, d, tmin, tmax);
         Tracker {
             t,
-            t1,
             active: if h.majorant > 0.0 {
                 mask & some
             } else {
                 L::ZERO
             },
-            majorant: L::splat(h.majorant),
+            segment: MajorantSegment {
+                t_min: t,
+                t_max: t1,
+                sigma_maj: L::splat(h.majorant),
+            },
             scale: L::splat(h.scale),
         }
     }
 
-    /// Steps the active lanes to their next tentative collision, `−ln(1 − u) / σ̄` on
-    /// (one draw each), and drops those past the span: whether any is left.
+    /// σ̄.
+    #[inline(always)]
+    fn majorant(&self) -> L {
+        self.segment.sigma_maj
+    }
+
+    /// Steps the active lanes to their next tentative collision, an optical depth
+    /// −ln(1 − u) on (one draw each), and drops those past the segment: whether any is
+    /// left.
     #[inline(always)]
     fn step(&mut self, rngs: &mut [Pcg32]) -> bool {
         let u = draw_1d(self.active, rngs);
-        let t = next_tentative(self.t, u, self.majorant);
+        let (t, inside) = self.segment.next_collision(self.t, optical_depth(u));
         self.t = self.active.blend(t, self.t);
-        self.active &= self.t.cmp_lt(self.t1);
+        self.active &= inside;
         self.active.any()
     }
 }
@@ -201,7 +212,7 @@ pub fn sample_flight(
         let sigma_t = eval(&h.sigma_t, p, active).scale(tracker.scale);
         // Real with probability P = mean(σ_t) / σ̄, else null.
         let u = draw_1d(active, rngs);
-        let real = active & u.cmp_lt(real_probability(sigma_t, tracker.majorant));
+        let real = active & u.cmp_lt(real_probability(sigma_t, tracker.majorant()));
         if real.any() {
             weight = weight.select(real, weight.mul(real_weight(sigma_t)));
             albedo = albedo.select(real, eval(&h.albedo, p, real));
@@ -210,7 +221,7 @@ pub fn sample_flight(
         let null = active & !real;
         // No null collision can happen where σ_n is 0 in every channel (σ_t at the
         // majorant): the flight passes with weight 0 there.
-        let (null_w, stuck) = null_weight(sigma_t, tracker.majorant);
+        let (null_w, stuck) = null_weight(sigma_t, tracker.majorant());
         let stuck = null & stuck;
         weight = weight.select(stuck, V3::splat(Vec3::ZERO));
         tracker.active = null & !stuck;
@@ -240,7 +251,7 @@ pub fn transmittance(
     while tracker.step(rngs) {
         let active = tracker.active;
         let sigma_t = eval(&h.sigma_t, o.add(d.scale(tracker.t)), active).scale(tracker.scale);
-        tr = tr.select(active, ratio_weight(sigma_t, tracker.majorant).mul(tr));
+        tr = tr.select(active, ratio_weight(sigma_t, tracker.majorant()).mul(tr));
         // Russian roulette once little is left (survivors weigh 1/q); a draw only where
         // something is left.
         let (play, end) = ratio_roulette(tr.max_element());

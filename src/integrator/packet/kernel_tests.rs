@@ -14,9 +14,10 @@ use crate::geometry::shape::sample_sphere_cone;
 use crate::geometry::{around, coordinate_system, to_world};
 use crate::integrator::roulette::continue_probability;
 use crate::medium::heterogeneous::{
-    next_tentative, null_weight, ratio_roulette, ratio_weight, real_probability, real_weight,
+    null_weight, ratio_roulette, ratio_weight, real_probability, real_weight,
 };
 use crate::medium::phase::{direction_at, hg_eval, hg_log_derivative_g, hg_sample};
+use crate::medium::tracking::{optical_depth, MajorantSegment};
 use crate::medium::{
     collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight, sample_distance,
     transmittance_rgb,
@@ -174,6 +175,16 @@ fn tracking_all<F: Float>([a, b, c, major, m]: [F; 5]) -> Vec<F> {
     .concat()
 }
 
+fn next_collision_all<F: Float>([t, u, sigma_maj, t_max]: [F; 4]) -> Vec<F> {
+    let segment = MajorantSegment {
+        t_min: F::zero(),
+        t_max,
+        sigma_maj,
+    };
+    let (next, inside) = segment.next_collision(t, optical_depth(u));
+    vec![next, mask_value::<F>(inside)]
+}
+
 fn directions_all<F: Float>([x, y, z, w, u]: [F; 5]) -> Vec<F> {
     let n = v3(x, y, z);
     let w = w * F::of(2.0);
@@ -278,11 +289,18 @@ fn transcendental_kernels_stay_within_a_few_ulp_of_the_scalar_path() {
         |[s, u]| vec![sample_distance(s, u)],
     ));
     worst.push(check(
-        "next_tentative",
+        "next_collision",
         near,
-        |r| [value(r, 0.0, 2.0), r.next_1d(), value(r, 0.1, 5.0)],
-        |[t, u, m]| vec![next_tentative(t, u, m)],
-        |[t, u, m]| vec![next_tentative(t, u, m)],
+        |r| {
+            [
+                value(r, 0.0, 2.0),
+                r.next_1d(),
+                value(r, 0.1, 5.0),
+                value(r, 0.5, 3.0),
+            ]
+        },
+        |[t, u, m, e]| next_collision_all([t, u, m, e]),
+        |[t, u, m, e]| next_collision_all([t, u, m, e]),
     ));
     worst.push(check(
         "transmittance",
@@ -380,7 +398,7 @@ fn the_sphere_cone_in_lanes_is_the_scalar_one() {
             });
             let p = V3::from_fn(|k| Vec3::from(points[k]));
             let c =
-                super::scatter::sample_cone(Vec3::from(sphere.center), sphere.radius, p, u1, u2);
+                super::emitters::sample_cone(Vec3::from(sphere.center), sphere.radius, p, u1, u2);
             let (ua, ub) = (u1.to_array(), u2.to_array());
             for k in 0..8 {
                 let s = sphere
@@ -406,7 +424,7 @@ fn the_sphere_cone_in_lanes_is_the_scalar_one() {
     }
     let inside_points =
         V3::from_fn(|k| Vec3::from(sphere.center) + Vec3::X * (sphere.radius * k as f32 / 8.0));
-    let c = super::scatter::sample_cone(
+    let c = super::emitters::sample_cone(
         Vec3::from(sphere.center),
         sphere.radius,
         inside_points,

@@ -13,17 +13,18 @@ use super::lanes::{draw_1d, draw_2d, mask_of, L, V3, WIDTH};
 use super::shapes::{shadow_transmittance, surface_hit, MediumSpan, Shadow};
 use super::{
     dielectric_of, emitting, gather_media, heterogeneous, medium_normals, offset_magnitude,
-    scatter, surface_emission, surface_lanes, MediumLanes, PacketScene, PacketSettings,
-    MAX_NULL_CROSSINGS,
+    surface_emission, surface_lanes, MediumLanes, PacketScene, PacketSettings, MAX_NULL_CROSSINGS,
 };
+use crate::geometry::to_world;
 use crate::integrator::roulette::continue_probability;
 use crate::integrator::sample::PathSample;
 use crate::medium::heterogeneous::HeterogeneousMedium;
-use crate::medium::phase::{hg_eval, hg_log_derivative_g};
+use crate::medium::phase::{direction_at, hg_eval, hg_log_derivative_g, hg_sample_angle};
 use crate::medium::{
     collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight, sample_distance,
     transmittance_rgb,
 };
+use crate::sampling::warp::cosine_hemisphere;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
 
@@ -542,7 +543,9 @@ impl PacketPaths {
         }
         // ---- Phase function sampling ----
         let (u1, u2) = draw_2d(collided, rngs);
-        let (wo, w) = scatter::sample_hg(d, m.g, u1, u2);
+        // Exact sampling (in f32: the packet takes only moderate |g|): the weight is 1.
+        let w = hg_sample_angle(m.g, u1);
+        let wo = direction_at(d, w, u2);
         if self.derivs.g_on {
             // f / p = 1 (exact sampling): with p detached, ∂f/∂g / p = ∂ ln p / ∂g.
             let score = hg_log_derivative_g(m.g, w);
@@ -703,7 +706,7 @@ impl PacketPaths {
         // one; drawn here too, unused, to keep the draws in step.
         let _ = draw_1d(at_surface, rngs);
         let (u1, u2) = draw_2d(at_surface, rngs);
-        let wo = scatter::sample_cosine(n, u1, u2);
+        let wo = to_world(n, cosine_hemisphere(u1, u2));
         if ps.area_emitters {
             self.last_p = self.last_p.select(front, self.o);
             self.last_pdf = front.blend(

@@ -17,8 +17,7 @@ use crate::integrator::roulette::continue_probability;
 use crate::integrator::sample::PathSample;
 use crate::medium::heterogeneous::HeterogeneousMedium;
 use crate::medium::{
-    collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight,
-    HomogeneousMedium,
+    collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight, Medium,
 };
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::{Scene, SurfaceInteraction};
@@ -195,7 +194,7 @@ impl PathState {
         mi: u32,
         rng: &mut Pcg32,
     ) -> Flight {
-        let m: &HomogeneousMedium = &scene.media[mi as usize];
+        let m: &Medium = &scene.media[mi as usize];
         // The clearance at the flight's origin, where the vertex it starts from looked it
         // up (for its emitter sample): the same point, the same value.
         let known_clearance = self.origin_clearance.take();
@@ -352,7 +351,7 @@ impl PathState {
         &mut self,
         settings: &PathSettings,
         mi: u32,
-        m: &HomogeneousMedium,
+        m: &Medium,
         flight: &mut Flight,
     ) {
         let albedo = settings.albedo[mi as usize];
