@@ -44,6 +44,45 @@ pub(super) fn mesh_error(path: &Path, msg: impl Into<String>) -> SceneError {
     SceneError::new(Some(Loc::file_only(path)), msg.into())
 }
 
+/// Bytes a loaded mesh takes at the least per triangle (its indices, geometric normal
+/// and area-CDF entry, and the ray caster's copy of the indices) and per vertex (its
+/// position and vertex normal). A floor, not an estimate (the ray caster's tree comes on
+/// top): only a mesh that cannot fit is refused.
+const MIN_BYTES_PER_TRIANGLE: u64 = 12 + 16 + 4 + 12;
+const MIN_BYTES_PER_VERTEX: u64 = 16 + 16;
+
+/// Refuses, before anything is read, a mesh of `triangles` and `vertices` whose arrays
+/// alone would not fit in the memory this machine has available (Linux's MemAvailable),
+/// instead of letting the machine swap; passes where that is not known.
+pub(super) fn check_fits(path: &Path, triangles: u64, vertices: u64) -> Result<()> {
+    let need = triangles
+        .saturating_mul(MIN_BYTES_PER_TRIANGLE)
+        .saturating_add(vertices.saturating_mul(MIN_BYTES_PER_VERTEX));
+    let Some(available) = available_memory() else {
+        return Ok(());
+    };
+    if need <= available {
+        return Ok(());
+    }
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    Err(mesh_error(
+        path,
+        format!(
+            "its {triangles} triangles and {vertices} vertices need at least {:.1} GiB of memory, and this machine has {:.1} GiB available: render it on a machine with more memory, or decimate the mesh",
+            gib(need),
+            gib(available)
+        ),
+    ))
+}
+
+/// MemAvailable of /proc/meminfo in bytes (None off Linux or where it is not readable).
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
 /// Runs a third-party reader, turning a panic inside it into an error naming the file.
 fn guarded<T>(path: &Path, what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
     match catch_unwind(AssertUnwindSafe(f)) {

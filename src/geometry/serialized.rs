@@ -111,6 +111,7 @@ pub fn read_serialized(path: &Path, shape_index: u32) -> Result<RawMesh> {
             "{vertex_count} vertices and {face_count} triangles cannot fit in this file (corrupt counts)"
         )));
     }
+    super::mesh::check_fits(path, face_count, vertex_count)?;
     let (nv, nf) = (vertex_count as usize, face_count as usize);
 
     let mut read_reals = |dim: usize| -> Result<Vec<f32>> {

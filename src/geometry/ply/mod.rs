@@ -8,7 +8,7 @@ use std::path::Path;
 
 use glam::{Vec2, Vec3A};
 
-use super::mesh::{mesh_error, RawMesh, Triangulator};
+use super::mesh::{check_fits, mesh_error, RawMesh, Triangulator};
 use crate::error::Result;
 use source::Source;
 
@@ -299,6 +299,15 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
         poly: Vec::new(),
     };
     let ascii = header.big_endian.is_none();
+    // A file that can hold what its header declares has at least a triangle a face (a
+    // face of fewer than 3 vertices is an error): refused here if that cannot fit. A
+    // file too short for its counts fails as truncated instead.
+    let declared = header.elements.iter().fold(0u64, |sum, e| {
+        sum.saturating_add(e.count.saturating_mul(e.min_bytes(ascii)))
+    });
+    if declared <= src.remaining() {
+        check_fits(path, n_faces, n_vertices)?;
+    }
     for (e, roles) in header.elements.iter().zip(&plan.roles) {
         let keep = roles.iter().any(|r| *r != Role::Skip);
         let cap = e.count.min(src.remaining() / e.min_bytes(ascii) + 1) as usize;
