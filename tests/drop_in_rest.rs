@@ -441,7 +441,7 @@ fn mesh_positions(s: &mediareg::scene::Scene) -> Vec<Vec<glam::Vec3A>> {
     s.geometries
         .iter()
         .filter_map(|g| match g {
-            mediareg::geometry::shape::Geometry::Mesh(m) => Some(m.positions.clone()),
+            mediareg::geometry::shape::Geometry::Mesh(m) => Some(m.positions.to_vec()),
             _ => None,
         })
         .collect()

@@ -3,6 +3,7 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
+use std::sync::Arc;
 
 use glam::{Mat4, Vec2, Vec3A};
 
@@ -11,10 +12,12 @@ use crate::error::{Loc, Result, SceneError};
 /// A triangle mesh in world space.
 #[derive(Clone, Debug)]
 pub struct TriangleMesh {
-    pub positions: Vec<Vec3A>,
+    /// Shared (never changed once built) with the ray caster, which may point into it
+    /// (Embree's shared buffers) instead of keeping a copy.
+    pub positions: Arc<Vec<Vec3A>>,
     /// Per-vertex shading normals; `None` with `face_normals` and for a flat mesh.
     pub normals: Option<Vec<Vec3A>>,
-    pub triangles: Vec<[u32; 3]>,
+    pub triangles: Arc<Vec<[u32; 3]>>,
     /// Per-vertex texture coordinates, when the file has them.
     pub uvs: Option<Vec<Vec2>>,
     pub flip_normals: bool,
@@ -317,9 +320,9 @@ impl TriangleMesh {
         // then reads without three more loads and a square root.
         let normals = normals.filter(|ns| !is_flat(&raw.triangles, &geometric_normals, ns));
         Ok(TriangleMesh {
-            positions,
+            positions: Arc::new(positions),
             normals,
-            triangles: raw.triangles,
+            triangles: Arc::new(raw.triangles),
             uvs: raw.uvs,
             flip_normals,
             geometric_normals,

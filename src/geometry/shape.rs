@@ -311,7 +311,7 @@ impl Geometry {
         match self {
             Geometry::Mesh(m) => {
                 let mut b = Bounds::EMPTY;
-                for p in &m.positions {
+                for p in m.positions.iter() {
                     b.expand(*p);
                 }
                 b

@@ -2,6 +2,8 @@
 //! shapes, few Mitsuba `cube`s as boxes), the caster's primitives in its order, and the
 //! caster itself, chosen once here ([`super::Caster`]).
 
+use std::sync::Arc;
+
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
 
@@ -215,8 +217,8 @@ fn build_embree(
             continue;
         }
         meshes.push(MeshRef {
-            positions: &m.positions,
-            triangles: &m.triangles,
+            positions: Arc::clone(&m.positions),
+            triangles: Arc::clone(&m.triangles),
             first_leaf: leaf as u32,
             shape: si as u32,
         });
@@ -224,5 +226,5 @@ fn build_embree(
     }
     let api = embree_api::load()
         .map_err(|e| format!("Embree 3 does not load ({e}); {}", embree_api::INSTALL_HINT))?;
-    EmbreeScene::build(api, &meshes, filtered)
+    EmbreeScene::build(api, meshes, filtered)
 }

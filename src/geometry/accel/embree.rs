@@ -13,6 +13,7 @@
 //! no allocation per ray.
 
 use std::ptr;
+use std::sync::Arc;
 
 use glam::Vec3A;
 
@@ -33,6 +34,10 @@ pub(crate) struct EmbreeScene {
     /// Whether the scene takes queries with a filter function (`intersect_filtered`,
     /// `each_hit`): only where it was built for them.
     pub(crate) filters: bool,
+    /// The meshes' vertex and index arrays, which Embree reads in place (shared
+    /// buffers, as Mitsuba 3 hands them over): held here as long as the scene lives, and
+    /// never changed while shared.
+    _shared: Vec<MeshRef>,
 }
 
 // SAFETY: the scene is committed before an `EmbreeScene` is handed out and never
@@ -43,9 +48,9 @@ unsafe impl Sync for EmbreeScene {}
 
 /// A mesh for Embree: vertex positions and triangles (indices into them); its
 /// triangles are the accelerator's leaves `first_leaf..first_leaf + triangles.len()`.
-pub(crate) struct MeshRef<'a> {
-    pub positions: &'a [Vec3A],
-    pub triangles: &'a [[u32; 3]],
+pub(crate) struct MeshRef {
+    pub positions: Arc<Vec<Vec3A>>,
+    pub triangles: Arc<Vec<[u32; 3]>>,
     pub first_leaf: u32,
     pub shape: u32,
 }
@@ -128,11 +133,13 @@ impl EmbreeScene {
     /// whether it will be asked queries with a filter function.
     pub(crate) fn build(
         api: &'static Api,
-        meshes: &[MeshRef],
+        meshes: Vec<MeshRef>,
         filters: bool,
     ) -> Result<EmbreeScene, String> {
-        // SAFETY: plain Embree API calls on handles created here; buffer writes stay
-        // within the sizes asked for (Embree pads new buffers for its 16-byte loads).
+        // SAFETY: plain Embree API calls on handles created here. The shared buffers
+        // outlive the scene (`_shared` holds them) and are never written while shared
+        // (behind an `Arc`); a vertex's 16-byte stride makes the last one readable by a
+        // 16-byte load, as Embree requires of vertex buffers.
         unsafe {
             let device = (api.new_device)(ptr::null());
             if device.is_null() {
@@ -147,6 +154,7 @@ impl EmbreeScene {
                 first_leaf: Vec::with_capacity(meshes.len()),
                 shape: Vec::with_capacity(meshes.len()),
                 filters,
+                _shared: Vec::new(),
             };
             if scene.is_null() {
                 return Err(s.error("rtcNewScene"));
@@ -158,35 +166,35 @@ impl EmbreeScene {
             if filters {
                 (api.set_scene_flags)(scene, sys::SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
             }
-            for m in meshes {
+            for m in &meshes {
                 let geometry = (api.new_geometry)(device, sys::GEOMETRY_TYPE_TRIANGLE);
                 if geometry.is_null() {
                     return Err(s.error("rtcNewGeometry"));
                 }
-                let vertices = (api.set_new_geometry_buffer)(
+                (api.set_shared_geometry_buffer)(
                     geometry,
                     sys::BUFFER_TYPE_VERTEX,
                     0,
                     sys::FORMAT_FLOAT3,
-                    16,
+                    m.positions.as_ptr().cast(),
+                    0,
+                    std::mem::size_of::<Vec3A>(),
                     m.positions.len(),
-                ) as *mut [f32; 4];
-                let indices = (api.set_new_geometry_buffer)(
+                );
+                (api.set_shared_geometry_buffer)(
                     geometry,
                     sys::BUFFER_TYPE_INDEX,
                     0,
                     sys::FORMAT_UINT3,
-                    12,
+                    m.triangles.as_ptr().cast(),
+                    0,
+                    std::mem::size_of::<[u32; 3]>(),
                     m.triangles.len(),
-                ) as *mut [u32; 3];
-                if vertices.is_null() || indices.is_null() {
+                );
+                if (api.get_device_error)(device) != sys::ERROR_NONE {
                     (api.release_geometry)(geometry);
-                    return Err(s.error("rtcSetNewGeometryBuffer"));
+                    return Err(s.error("rtcSetSharedGeometryBuffer"));
                 }
-                for (i, p) in m.positions.iter().enumerate() {
-                    vertices.add(i).write([p.x, p.y, p.z, 0.0]);
-                }
-                ptr::copy_nonoverlapping(m.triangles.as_ptr(), indices, m.triangles.len());
                 (api.set_geometry_build_quality)(geometry, sys::BUILD_QUALITY_HIGH);
                 (api.commit_geometry)(geometry);
                 let id = (api.attach_geometry)(scene, geometry);
@@ -198,6 +206,7 @@ impl EmbreeScene {
                 s.first_leaf.push(m.first_leaf);
                 s.shape.push(m.shape);
             }
+            s._shared = meshes;
             (api.commit_scene)(scene);
             match (api.get_device_error)(device) {
                 sys::ERROR_NONE => Ok(s),

@@ -123,6 +123,8 @@ pub struct Api {
     pub new_geometry: unsafe extern "C" fn(Device, c_int) -> Geometry,
     pub set_new_geometry_buffer:
         unsafe extern "C" fn(Geometry, c_int, u32, c_int, usize, usize) -> *mut c_void,
+    pub set_shared_geometry_buffer:
+        unsafe extern "C" fn(Geometry, c_int, u32, c_int, *const c_void, usize, usize, usize),
     pub set_geometry_build_quality: unsafe extern "C" fn(Geometry, c_int),
     pub commit_geometry: unsafe extern "C" fn(Geometry),
     pub attach_geometry: unsafe extern "C" fn(Scene, Geometry) -> u32,
@@ -167,6 +169,7 @@ fn open() -> Result<Api, String> {
         commit_scene: sym!(b"rtcCommitScene\0"),
         new_geometry: sym!(b"rtcNewGeometry\0"),
         set_new_geometry_buffer: sym!(b"rtcSetNewGeometryBuffer\0"),
+        set_shared_geometry_buffer: sym!(b"rtcSetSharedGeometryBuffer\0"),
         set_geometry_build_quality: sym!(b"rtcSetGeometryBuildQuality\0"),
         commit_geometry: sym!(b"rtcCommitGeometry\0"),
         attach_geometry: sym!(b"rtcAttachGeometry\0"),
