@@ -10,7 +10,7 @@ use obvhs::aabb::Aabb;
 use super::backend::{Backend, EMBREE_MIN_TRIANGLES};
 use super::brute_force::BRUTE_FORCE_PRIMS;
 use super::bvh::{self, Bvh};
-use super::embree::{EmbreeScene, MeshRef};
+use super::embree::{build_quality, EmbreeScene, MeshRef};
 use super::embree_api;
 use super::lanes::{self, TriangleLanes};
 use super::primitive::{PrimRef, Primitives, ANALYTIC};
@@ -202,13 +202,9 @@ fn prim_aabb(shapes: &[&Geometry], p: &PrimRef) -> Aabb {
     }
 }
 
-/// Embree's scene over the meshes' triangles but the cubes' (tested as boxes), as the
-/// primitive list has them: each mesh's triangles contiguous, in the mesh's order.
-fn build_embree(
-    shapes: &[&Geometry],
-    cuboids: &[Cuboid],
-    filtered: bool,
-) -> Result<EmbreeScene, String> {
+/// The meshes of `shapes` for Embree but the cubes' (tested as boxes), as the primitive
+/// list has them: each mesh's triangles contiguous, in the mesh's order.
+pub(super) fn embree_meshes(shapes: &[&Geometry], cuboids: &[Cuboid]) -> Vec<MeshRef> {
     let mut meshes = Vec::new();
     let mut leaf = 0;
     for (si, g) in shapes.iter().enumerate() {
@@ -224,7 +220,18 @@ fn build_embree(
         });
         leaf += m.triangles.len();
     }
+    meshes
+}
+
+/// Embree's scene over [`embree_meshes`], at the build quality their size asks for.
+fn build_embree(
+    shapes: &[&Geometry],
+    cuboids: &[Cuboid],
+    filtered: bool,
+) -> Result<EmbreeScene, String> {
+    let meshes = embree_meshes(shapes, cuboids);
+    let triangles = meshes.iter().map(|m| m.triangles.len()).sum();
     let api = embree_api::load()
         .map_err(|e| format!("Embree 3 does not load ({e}); {}", embree_api::INSTALL_HINT))?;
-    EmbreeScene::build(api, meshes, filtered)
+    EmbreeScene::build(api, meshes, filtered, build_quality(triangles))
 }

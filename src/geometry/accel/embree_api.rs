@@ -31,6 +31,7 @@ pub const INSTALL_HINT: &str =
 MEDIAREG_EMBREE=/path/to/libembree3.so.3";
 
 // rtcore_*.h of Embree 3: the enumerators used.
+pub const BUILD_QUALITY_MEDIUM: c_int = 1;
 pub const BUILD_QUALITY_HIGH: c_int = 2;
 pub const SCENE_FLAG_CONTEXT_FILTER_FUNCTION: c_int = 1 << 3;
 pub const GEOMETRY_TYPE_TRIANGLE: c_int = 0;
