@@ -133,9 +133,9 @@ fn ray(o: Vec3A, d: Vec3A, tmax: f32) -> sys::Ray {
 pub(crate) const MEDIUM_BUILD_FROM: usize = 1_000_000;
 
 /// The build quality for a scene of `triangles`: high (spatial splits, as Mitsuba 3)
-/// where the build takes well under a second, medium for the large scanned meshes where
-/// the high build was most of the load (a 5M-triangle scan: 4.3 s against 1.9 s; 20M:
-/// 14.7 s against 9.0 s) and rendered no faster (samples/s within the runs' spread).
+/// where the build is quick, medium for large scanned meshes, where the high build was
+/// most of the load and rendered no faster (docs/performance_history.md, "Large
+/// scenes").
 pub(crate) fn build_quality(triangles: usize) -> std::os::raw::c_int {
     if triangles >= MEDIUM_BUILD_FROM {
         sys::BUILD_QUALITY_MEDIUM
@@ -208,9 +208,12 @@ impl EmbreeScene {
                     std::mem::size_of::<[u32; 3]>(),
                     m.triangles.len(),
                 );
-                if (api.get_device_error)(device) != sys::ERROR_NONE {
+                let code = (api.get_device_error)(device);
+                if code != sys::ERROR_NONE {
                     (api.release_geometry)(geometry);
-                    return Err(s.error("rtcSetSharedGeometryBuffer"));
+                    return Err(format!(
+                        "Embree: rtcSetSharedGeometryBuffer failed (RTCError {code})"
+                    ));
                 }
                 (api.set_geometry_build_quality)(geometry, quality);
                 (api.commit_geometry)(geometry);
