@@ -85,18 +85,11 @@ const SCENES: &[Case] = &[
     ("lucy", "lucy", &[], "lucy"),
 ];
 
-fn env<T: std::str::FromStr>(name: &str, default: T) -> T {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 #[test]
 #[ignore]
 fn measure_never_lose() {
-    let budget: f64 = env("NEVER_LOSE_BUDGET", 2.0);
-    let seeds: u64 = env("NEVER_LOSE_SEEDS", 4);
+    let budget: f64 = common::env_or("NEVER_LOSE_BUDGET", 2.0);
+    let seeds: u64 = common::env_or("NEVER_LOSE_SEEDS", 4);
     let only = std::env::var("NEVER_LOSE_SCENES").unwrap_or_default();
     println!("| scene | spp plain | MSE×s plain | MSE×s plain+OIDN | MSE×s regularize --frames 1 | ÷ better [95% CI] | OIDN kept (seeds) |");
     println!("|---|---:|---:|---:|---:|---:|---:|");

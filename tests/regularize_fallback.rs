@@ -39,18 +39,9 @@ fn choice_and_truth(name: &str, spp: u32, seed: u64) -> (bool, bool, f64, f64, f
     let out = one_frame(&scene);
     let check = out.oidn_check.expect("enough spp for the check");
     let (reference, var) = common::reference_images(name);
-    let shot = scene.shot.with(spp, seed + 1000);
-    let r = integrator::render(
-        &scene,
-        &shot,
-        &RenderOptions {
-            seen_emission: true,
-            ..Default::default()
-        },
-    );
-    let d = denoised::oidn(&scene, &shot, &r, AuxUse::None, None).unwrap();
+    let (plain_image, d) = common::plain_and_oidn(&scene, spp, seed);
     let (plain, oidn) = (
-        mse_against(&r.image, &reference, &var).1,
+        mse_against(&plain_image, &reference, &var).1,
         mse_against(&d, &reference, &var).1,
     );
     (

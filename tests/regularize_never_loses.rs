@@ -21,7 +21,6 @@ mod common;
 use std::sync::OnceLock;
 
 use mediareg::denoise::{self, AuxUse};
-use mediareg::integrator::{self, denoised, RenderOptions};
 use mediareg::regularize::{self, choices, Choices};
 use mediareg::report::metrics::mse_against;
 use mediareg::report::summary::ratio_interval;
@@ -92,20 +91,11 @@ fn errors(name: &str, spp: u32, seed: u64) -> Errors {
             &denoise::oidn(&out.source, out.seen_emission.as_ref(), None, AuxUse::None).unwrap(),
         ),
     };
-    let shot = scene.shot.with(spp, seed + 1000);
-    let r = integrator::render(
-        &scene,
-        &shot,
-        &RenderOptions {
-            seen_emission: true,
-            ..Default::default()
-        },
-    );
-    let d = denoised::oidn(&scene, &shot, &r, AuxUse::None, None).unwrap();
+    let (plain_image, d) = common::plain_and_oidn(&scene, spp, seed);
     Errors {
         regularize: err(&out.predicted),
         chose_oidn,
-        plain: err(&r.image),
+        plain: err(&plain_image),
         oidn: err(&d),
         always_plain: err(&out.source),
         always_oidn,
@@ -200,13 +190,6 @@ fn a_chooser_that_always_takes_the_worse_image_fails_the_criterion() {
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }
 
-fn env<T: std::str::FromStr>(name: &str, default: T) -> T {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
-
 /// The criterion's false-alarm rate with the real check, and the wrong choosers' power,
 /// over `NEVER_LOSES_SEEDS` seeds per scene (default 40; seeds 1..=`SEEDS` are the
 /// asserted tests'): the share of `NEVER_LOSES_DRAWS` random `SEEDS`-seed subsets of them
@@ -217,8 +200,8 @@ fn env<T: std::str::FromStr>(name: &str, default: T) -> T {
 #[test]
 #[ignore]
 fn measure_false_alarms_and_power() {
-    let seeds: u64 = env("NEVER_LOSES_SEEDS", 40);
-    let draws: usize = env("NEVER_LOSES_DRAWS", 20000);
+    let seeds: u64 = common::env_or("NEVER_LOSES_SEEDS", 40);
+    let draws: usize = common::env_or("NEVER_LOSES_DRAWS", 20000);
     let cases: Vec<(String, u32)> = match std::env::var("NEVER_LOSES_CASES") {
         Ok(s) => s
             .split(',')

@@ -387,3 +387,34 @@ fn mirror_tree(tree: &Path, rel: &Path, out: &Path, text: &str) -> PathBuf {
     }
     dst
 }
+
+/// The environment variable `name` parsed, else `default` (the ignored measurements'
+/// knobs).
+pub fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// The baselines a regularized frame is held to: a plain render of `scene` at `spp` with
+/// its own seed (`seed + 1000`, apart from the method's draws) and that render through
+/// OIDN, as `render --denoise oidn` makes it (seen emission kept out and added back).
+pub fn plain_and_oidn(
+    scene: &Scene,
+    spp: u32,
+    seed: u64,
+) -> (mediareg::image::Image, mediareg::image::Image) {
+    use mediareg::integrator::{self, denoised, RenderOptions};
+    let shot = scene.shot.with(spp, seed + 1000);
+    let r = integrator::render(
+        scene,
+        &shot,
+        &RenderOptions {
+            seen_emission: true,
+            ..Default::default()
+        },
+    );
+    let d = denoised::oidn(scene, &shot, &r, mediareg::denoise::AuxUse::None, None).unwrap();
+    (r.image, d)
+}
