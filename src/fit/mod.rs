@@ -244,15 +244,6 @@ fn check(targets: &[FitTarget], settings: &FitSettings) -> Result<u32, FitError>
                 film.crop_size.1
             )));
         }
-        if t.scene
-            .media
-            .get(mi as usize)
-            .is_some_and(|m| m.heterogeneous.is_some())
-        {
-            return Err(FitError::Gradient(GradientError::Unsupported(
-                "fit: heterogeneous media are not fitted yet (render --gradient scale gives their derivative)".into(),
-            )));
-        }
     }
     Ok(mi)
 }

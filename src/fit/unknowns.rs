@@ -98,11 +98,7 @@ impl Unknown {
                     g: v.clamp(-G_LIMIT, G_LIMIT),
                 }
             }
-            MediumParam::Scale => {
-                let raw = m.sigma_t / m.scale;
-                m.scale = v.max(1e-6);
-                m.sigma_t = raw * m.scale;
-            }
+            MediumParam::Scale => m.set_scale(v.max(1e-6)),
         }
     }
 

@@ -92,6 +92,17 @@ impl HeterogeneousMedium {
         }
     }
 
+    /// The medium at density `scale`: σ̄ and the local majorants made again for it, as
+    /// the loader makes them (a pass over the grid: cheap beside a render), so that the
+    /// medium is the one `-D scale=…` would load.
+    pub fn set_scale(&mut self, scale: f32) {
+        self.scale = scale;
+        self.majorant = self.sigma_t.max * scale;
+        if self.majorants.is_some() {
+            self.majorants = MajorantGrid::new(&self.sigma_t, scale);
+        }
+    }
+
     /// σ_t at `p` (with `scale`).
     #[inline]
     pub fn sigma_t_at(&self, p: Vec3A) -> Vec3 {

@@ -61,6 +61,19 @@ impl Medium {
         self.sigma_t.x == self.sigma_t.y && self.sigma_t.y == self.sigma_t.z
     }
 
+    /// Sets the XML `scale`: σ_t scaled with it (a heterogeneous medium's majorants
+    /// too).
+    pub fn set_scale(&mut self, scale: f32) {
+        match &mut self.heterogeneous {
+            Some(h) => {
+                h.set_scale(scale);
+                self.sigma_t = Vec3::splat(h.majorant);
+            }
+            None => self.sigma_t = self.sigma_t / self.scale * scale,
+        }
+        self.scale = scale;
+    }
+
     /// A free-flight distance sampled with the extinction of `channel` (∞ where that
     /// extinction is 0: the ray never collides).
     #[inline]
