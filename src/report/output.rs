@@ -227,7 +227,10 @@ pub fn write_outputs(opts: &TableOptions, run: &TableRun) -> Result<()> {
 /// `[mean, low, high]` as a table cell: "mean [low, high]".
 pub fn interval(x: Option<[f64; 3]>) -> String {
     x.map_or("–".into(), |[m, lo, hi]| {
-        format!("{m:.3} [{lo:.3}, {hi:.3}]")
+        match lo.is_nan() || hi.is_nan() {
+            true => format!("{m:.3} [one seed]"),
+            false => format!("{m:.3} [{lo:.3}, {hi:.3}]"),
+        }
     })
 }
 

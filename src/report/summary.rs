@@ -52,10 +52,11 @@ fn mean_var(x: &[f64]) -> (f64, f64) {
     (mean, var)
 }
 
-/// (S1): `[R, low, high]` for the ratio of the means of `x` over `y`; None where either
-/// has fewer than two values or a mean is not positive.
+/// (S1): `[R, low, high]` for the ratio of the means of `x` over `y`; the bounds NaN
+/// where either has one value (the ratio stands, its interval needs seeds); None where
+/// either is empty or a mean is not positive.
 pub fn ratio_interval(x: &[f64], y: &[f64]) -> Option<[f64; 3]> {
-    if x.len() < 2 || y.len() < 2 {
+    if x.is_empty() || y.is_empty() {
         return None;
     }
     let ((mx, vx), (my, vy)) = (mean_var(x), mean_var(y));
@@ -63,6 +64,9 @@ pub fn ratio_interval(x: &[f64], y: &[f64]) -> Option<[f64; 3]> {
         return None;
     }
     let r = mx / my;
+    if x.len() < 2 || y.len() < 2 {
+        return Some([r, f64::NAN, f64::NAN]);
+    }
     let a = vx / (x.len() as f64 * mx * mx);
     let b = vy / (y.len() as f64 * my * my);
     let se = r * (a + b).sqrt();
@@ -179,7 +183,9 @@ mod tests {
 
     #[test]
     fn no_interval_from_one_seed_or_a_nonpositive_mean() {
-        assert_eq!(ratio_interval(&[1.0], &[1.0, 2.0]), None);
+        let [r, lo, hi] = ratio_interval(&[3.0], &[1.0, 2.0]).unwrap();
+        assert!(r == 2.0 && lo.is_nan() && hi.is_nan(), "{r} [{lo}, {hi}]");
+        assert_eq!(ratio_interval(&[], &[1.0, 2.0]), None);
         assert_eq!(ratio_interval(&[-1.0, -2.0], &[1.0, 2.0]), None);
         let [r, lo, hi] = ratio_interval(&[2.0, 2.0], &[1.0, 1.0]).unwrap();
         assert_eq!((r, lo, hi), (2.0, 2.0, 2.0));
