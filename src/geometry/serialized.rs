@@ -14,7 +14,8 @@
 //! `shape_index` picks one. As in Mitsuba 3, vertex colours are skipped and the 0x10
 //! (face normals) flag is not read: the `face_normals` property decides.
 
-use std::io::Read;
+use std::fs::File;
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::Path;
 
 use flate2::read::ZlibDecoder;
@@ -42,18 +43,20 @@ fn error(path: &Path, shape_index: u32, msg: impl Into<String>) -> SceneError {
     )
 }
 
-/// Reads mesh `shape_index` of the `.serialized` file at `path`.
+/// Reads mesh `shape_index` of the `.serialized` file at `path`: only that mesh's
+/// stream is read, inflated as it is decoded (a file of many meshes, each a shape of
+/// the scene, is then read about once in all, and no copy of it is held).
 pub fn read_serialized(path: &Path, shape_index: u32) -> Result<RawMesh> {
     let fail = |msg: String| error(path, shape_index, msg);
-    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot open the file: {e}")))?;
-    let u16_at = |o: usize| {
-        bytes
-            .get(o..o + 2)
-            .map(|b| u16::from_le_bytes([b[0], b[1]]))
-    };
-    let (Some(magic), Some(version)) = (u16_at(0), u16_at(2)) else {
+    let open_error = |e: std::io::Error| fail(format!("cannot open the file: {e}"));
+    let mut file = File::open(path).map_err(open_error)?;
+    let len = file.metadata().map_err(open_error)?.len();
+    let mut header = [0u8; 4];
+    if file.read_exact(&mut header).is_err() {
         return Err(fail("the file is shorter than its 4-byte header".into()));
-    };
+    }
+    let magic = u16::from_le_bytes([header[0], header[1]]);
+    let version = u16::from_le_bytes([header[2], header[3]]);
     if magic != MAGIC {
         return Err(fail(format!(
             "not a Mitsuba .serialized file (it starts with 0x{magic:04X}, expected 0x041C)"
@@ -67,17 +70,14 @@ pub fn read_serialized(path: &Path, shape_index: u32) -> Result<RawMesh> {
     let start = if shape_index == 0 {
         0
     } else {
-        mesh_offset(&bytes, version, shape_index).map_err(fail)?
+        mesh_offset(&mut file, len, version, shape_index).map_err(fail)?
     };
     // Each mesh repeats the 4-byte header before its stream.
-    let stream = bytes.get(start + 4..).ok_or_else(|| {
-        fail(format!(
-            "the offset of the mesh ({start}) is past the end of the file"
-        ))
-    })?;
-    let budget = stream.len() as u64 * MAX_EXPANSION;
+    file.seek(SeekFrom::Start(start + 4))
+        .map_err(|e| fail(format!("cannot read the file: {e}")))?;
+    let budget = (len - start - 4) * MAX_EXPANSION;
     let mut r = Reader {
-        z: ZlibDecoder::new(stream),
+        z: ZlibDecoder::new(BufReader::new(file)),
     };
     let truncated = |e: std::io::Error| {
         fail(format!(
@@ -114,52 +114,24 @@ pub fn read_serialized(path: &Path, shape_index: u32) -> Result<RawMesh> {
     super::mesh::check_fits(path, face_count, vertex_count)?;
     let (nv, nf) = (vertex_count as usize, face_count as usize);
 
-    let mut read_reals = |dim: usize| -> Result<Vec<f32>> {
-        let mut raw = vec![0u8; nv * dim * real as usize];
-        r.z.read_exact(&mut raw).map_err(truncated)?;
-        Ok(if real == 8 {
-            raw.chunks_exact(8)
-                .map(|c| f64::from_le_bytes(c.try_into().unwrap()) as f32)
-                .collect()
-        } else {
-            raw.chunks_exact(4)
-                .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-                .collect()
-        })
+    let vec3 = |c: [f32; 3]| Vec3A::from_array(c);
+    let positions = r.reals(nv, real, vec3).map_err(truncated)?;
+    let normals = match flags & HAS_NORMALS != 0 {
+        true => Some(r.reals(nv, real, vec3).map_err(truncated)?),
+        false => None,
     };
-    let positions: Vec<Vec3A> = read_reals(3)?
-        .chunks_exact(3)
-        .map(|c| Vec3A::new(c[0], c[1], c[2]))
-        .collect();
-    let normals = if flags & HAS_NORMALS != 0 {
-        Some(
-            read_reals(3)?
-                .chunks_exact(3)
-                .map(|c| Vec3A::new(c[0], c[1], c[2]))
-                .collect::<Vec<_>>(),
-        )
-    } else {
-        None
-    };
-    let uvs = if flags & HAS_TEXCOORDS != 0 {
-        Some(
-            read_reals(2)?
-                .chunks_exact(2)
-                .map(|c| Vec2::new(c[0], c[1]))
-                .collect::<Vec<_>>(),
-        )
-    } else {
-        None
+    let uvs = match flags & HAS_TEXCOORDS != 0 {
+        true => Some(r.reals(nv, real, Vec2::from_array).map_err(truncated)?),
+        false => None,
     };
     if flags & HAS_COLORS != 0 {
-        read_reals(3)?;
+        r.reals(nv, real, |_: [f32; 3]| ()).map_err(truncated)?;
     }
-    let mut raw = vec![0u8; nf * 12];
-    r.z.read_exact(&mut raw).map_err(truncated)?;
-    let triangles: Vec<[u32; 3]> = raw
-        .chunks_exact(12)
-        .map(|c| [0, 1, 2].map(|k| u32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap())))
-        .collect();
+    let triangles = r
+        .records(nf, 12, |c| {
+            [0, 1, 2].map(|k| u32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap()))
+        })
+        .map_err(truncated)?;
     if let Some((i, t)) = triangles
         .iter()
         .enumerate()
@@ -179,40 +151,59 @@ pub fn read_serialized(path: &Path, shape_index: u32) -> Result<RawMesh> {
     })
 }
 
-/// The byte offset of mesh `index` from the dictionary at the end of the file.
-fn mesh_offset(bytes: &[u8], version: u16, index: u32) -> std::result::Result<usize, String> {
-    let len = bytes.len();
-    let count = len
+/// The byte offset of mesh `index` from the dictionary at the end of the file (`len`
+/// bytes long).
+fn mesh_offset(
+    file: &mut File,
+    len: u64,
+    version: u16,
+    index: u32,
+) -> std::result::Result<u64, String> {
+    let mut read_at = |at: u64, n: usize| -> std::result::Result<[u8; 8], String> {
+        let mut b = [0u8; 8];
+        file.seek(SeekFrom::Start(at))
+            .and_then(|_| file.read_exact(&mut b[..n]))
+            .map_err(|e| {
+                format!("cannot read the dictionary of meshes at the end of the file: {e}")
+            })?;
+        Ok(b)
+    };
+    let count_at = len
         .checked_sub(4)
-        .map(|o| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap()))
         .ok_or("the file has no dictionary of meshes at its end")?;
+    let b = read_at(count_at, 4)?;
+    let count = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
     if index >= count {
         return Err(format!(
             "the file holds {count} mesh(es), indices 0..{}; shape_index {index} is out of range",
             count.saturating_sub(1)
         ));
     }
-    let entry = if version == 4 { 8 } else { 4 };
-    let from_end = entry * (count - index) as usize + 4;
+    let entry: u64 = if version == 4 { 8 } else { 4 };
+    let from_end = entry * (count - index) as u64 + 4;
     let at = len
         .checked_sub(from_end)
         .ok_or("the dictionary of meshes at the end of the file is truncated")?;
-    let offset = if version == 4 {
-        u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap())
-    } else {
-        u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as u64
+    let b = read_at(at, entry as usize)?;
+    let offset = match version {
+        4 => u64::from_le_bytes(b),
+        _ => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64,
     };
-    usize::try_from(offset)
-        .ok()
-        .filter(|&o| o + 4 <= len)
+    Some(offset)
+        .filter(|&o| o.checked_add(4).is_some_and(|e| e <= len))
         .ok_or_else(|| format!("mesh {index} starts at byte {offset}, past the end of the file"))
 }
 
-struct Reader<'a> {
-    z: ZlibDecoder<&'a [u8]>,
+/// A mesh's stream, inflated as it is read.
+struct Reader {
+    z: ZlibDecoder<BufReader<File>>,
 }
 
-impl Reader<'_> {
+/// Records decoded per chunk of this many bytes (the inflated arrays are never held
+/// whole beside the decoded ones).
+const CHUNK: usize = 1 << 16;
+
+impl Reader {
     fn bytes<const N: usize>(&mut self) -> std::io::Result<[u8; N]> {
         let mut b = [0u8; N];
         self.z.read_exact(&mut b)?;
@@ -226,6 +217,42 @@ impl Reader<'_> {
     }
     fn u64(&mut self) -> std::io::Result<u64> {
         Ok(u64::from_le_bytes(self.bytes()?))
+    }
+
+    /// `n` records of `size` bytes each, each decoded by `decode`.
+    fn records<T>(
+        &mut self,
+        n: usize,
+        size: usize,
+        mut decode: impl FnMut(&[u8]) -> T,
+    ) -> std::io::Result<Vec<T>> {
+        let mut out = Vec::with_capacity(n);
+        let mut buf = vec![0u8; (CHUNK / size).max(1) * size];
+        let mut left = n;
+        while left > 0 {
+            let take = left.min(buf.len() / size);
+            let chunk = &mut buf[..take * size];
+            self.z.read_exact(chunk)?;
+            out.extend(chunk.chunks_exact(size).map(&mut decode));
+            left -= take;
+        }
+        Ok(out)
+    }
+
+    /// `n` vectors of D reals (f32, or f64 where `real` is 8, narrowed), mapped by `f`.
+    fn reals<const D: usize, T>(
+        &mut self,
+        n: usize,
+        real: u64,
+        f: impl Fn([f32; D]) -> T,
+    ) -> std::io::Result<Vec<T>> {
+        let real = real as usize;
+        self.records(n, D * real, |c| {
+            f(std::array::from_fn(|k| match real {
+                8 => f64::from_le_bytes(c[8 * k..8 * k + 8].try_into().unwrap()) as f32,
+                _ => f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap()),
+            }))
+        })
     }
 }
 
