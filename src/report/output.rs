@@ -272,7 +272,7 @@ fn markdown(info: &RunInfo, summaries: &[Summary]) -> Result<String> {
     for r in summaries {
         writeln!(
             md,
-            "| {} | {} | {} | {:.0} | {:.2} | {:.3e} | {:.3e} ± {:.1e} | {} | {} | {} |",
+            "| {} | {} | {} | {:.0} | {:.2} | {:.3e} | {:.3e}{} | {} | {} | {} |",
             r.scene,
             r.method.as_str(),
             r.accounting.as_str(),
@@ -280,7 +280,11 @@ fn markdown(info: &RunInfo, summaries: &[Summary]) -> Result<String> {
             r.seconds,
             r.mse,
             r.mse_corrected,
-            r.mse_corrected_se,
+            // One seed has no spread.
+            match r.mse_corrected_se.is_nan() {
+                true => String::new(),
+                false => format!(" ± {:.1e}", r.mse_corrected_se),
+            },
             interval(r.ratio_to_volpath),
             interval(r.ratio_to_best),
             r.best.map_or("–", |b| b.as_str()),
