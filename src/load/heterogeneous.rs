@@ -9,7 +9,6 @@ use super::props::Props;
 use super::Builder;
 use crate::error::{Result, SceneError};
 use crate::medium::grid::Source;
-use crate::medium::majorant::MajorantGrid;
 use crate::medium::{HeterogeneousMedium, Medium};
 use crate::xml::description::ObjId;
 
@@ -36,7 +35,8 @@ impl Builder<'_> {
         if !(scale > 0.0 && scale.is_finite()) {
             return Err(p.error(format!("scale = {scale}: must be > 0")));
         }
-        let majorant = sigma_t.max * scale as f32;
+        let medium = HeterogeneousMedium::new(sigma_t, albedo, scale as f32, bounded);
+        let majorant = medium.majorant;
         if !(majorant > 0.0 && majorant.is_finite()) {
             return Err(SceneError::at(
                 &sigma_loc,
@@ -50,7 +50,7 @@ impl Builder<'_> {
         let sample_emitters = p.bool("sample_emitters", true)?;
         // With `false`, Mitsuba weights real collisions by the albedo alone and null
         // ones by nothing, exact only for grey extinction (see load/medium.rs).
-        if !p.bool("has_spectral_extinction", true)? && !sigma_t.is_grey() {
+        if !p.bool("has_spectral_extinction", true)? && !medium.sigma_t.is_grey() {
             let loc = p
                 .get("has_spectral_extinction")
                 .map_or(p.obj.loc.clone(), |(_, l)| l.clone());
@@ -70,16 +70,7 @@ impl Builder<'_> {
             phase,
             sample_emitters,
             id: medium_id,
-            heterogeneous: Some(Box::new(HeterogeneousMedium {
-                majorants: bounded
-                    .then(|| MajorantGrid::new(&sigma_t, scale as f32))
-                    .flatten(),
-                sigma_t,
-                albedo,
-                scale: scale as f32,
-                majorant,
-                bounded,
-            })),
+            heterogeneous: Some(Box::new(medium)),
         });
         let i = self.media.len() as u32 - 1;
         self.medium_ids.insert(id, i);

@@ -92,15 +92,32 @@ impl HeterogeneousMedium {
         }
     }
 
-    /// The medium at density `scale`: σ̄ and the local majorants made again for it, as
-    /// the loader makes them (a pass over the grid: cheap beside a render), so that the
-    /// medium is the one `-D scale=…` would load.
+    /// The medium of extinction `sigma_t` × `scale` and albedo `albedo`, with its
+    /// majorants (`set_scale`).
+    pub fn new(sigma_t: Volume, albedo: Volume, scale: f32, bounded: bool) -> HeterogeneousMedium {
+        let mut m = HeterogeneousMedium {
+            sigma_t,
+            albedo,
+            scale,
+            majorant: 0.0,
+            bounded,
+            majorants: None,
+        };
+        m.set_scale(scale);
+        m
+    }
+
+    /// The medium at density `scale`: σ̄ and, for a bounded medium, the local
+    /// majorants made for it (a pass over the grid: cheap beside a render), as the
+    /// loader makes them (it calls `new`), so that a fit's medium is the one
+    /// `-D scale=…` loads.
     pub fn set_scale(&mut self, scale: f32) {
         self.scale = scale;
         self.majorant = self.sigma_t.max * scale;
-        if self.majorants.is_some() {
-            self.majorants = MajorantGrid::new(&self.sigma_t, scale);
-        }
+        self.majorants = match self.bounded {
+            true => MajorantGrid::new(&self.sigma_t, scale),
+            false => None,
+        };
     }
 
     /// σ_t at `p` (with `scale`).
