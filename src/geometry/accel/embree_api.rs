@@ -122,8 +122,6 @@ pub struct Api {
     pub set_scene_flags: unsafe extern "C" fn(Scene, c_int),
     pub commit_scene: unsafe extern "C" fn(Scene),
     pub new_geometry: unsafe extern "C" fn(Device, c_int) -> Geometry,
-    pub set_new_geometry_buffer:
-        unsafe extern "C" fn(Geometry, c_int, u32, c_int, usize, usize) -> *mut c_void,
     pub set_shared_geometry_buffer:
         unsafe extern "C" fn(Geometry, c_int, u32, c_int, *const c_void, usize, usize, usize),
     pub set_geometry_build_quality: unsafe extern "C" fn(Geometry, c_int),
@@ -169,7 +167,6 @@ fn open() -> Result<Api, String> {
         set_scene_flags: sym!(b"rtcSetSceneFlags\0"),
         commit_scene: sym!(b"rtcCommitScene\0"),
         new_geometry: sym!(b"rtcNewGeometry\0"),
-        set_new_geometry_buffer: sym!(b"rtcSetNewGeometryBuffer\0"),
         set_shared_geometry_buffer: sym!(b"rtcSetSharedGeometryBuffer\0"),
         set_geometry_build_quality: sym!(b"rtcSetGeometryBuildQuality\0"),
         commit_geometry: sym!(b"rtcCommitGeometry\0"),
