@@ -209,6 +209,27 @@ impl Volume {
         }
     }
 
+    /// The grid and its filter where the volume is a grid with clamped lookups
+    /// (Mitsuba's default), whose lookups outside the cube read its edge voxels.
+    pub fn clamped_grid(&self) -> Option<(&GridData, Filter)> {
+        match &self.source {
+            Source::Grid {
+                grid,
+                filter,
+                wrap: Wrap::Clamp,
+            } => Some((grid, *filter)),
+            _ => None,
+        }
+    }
+
+    /// How many values the volume stores (1 for a constant).
+    pub fn values(&self) -> usize {
+        match &self.source {
+            Source::Const(_) => 1,
+            Source::Grid { grid, .. } => grid.data.len(),
+        }
+    }
+
     /// Whether every point has equal channels (a 1-channel grid or a grey constant).
     pub fn is_grey(&self) -> bool {
         match &self.source {

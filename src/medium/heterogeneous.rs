@@ -29,10 +29,15 @@
 use glam::{Vec3, Vec3A};
 
 use super::grid::Volume;
+use super::lookup_bounds::LookupBounds;
 use super::majorant::{self, MajorantGrid};
 use super::tracking::{sample_t_maj, MajorantSegment, MajorantSegments};
 use crate::sampling::Pcg32;
 use crate::simd::{Float, Vector3};
+
+/// Grids of more values than this get lookup bounds: the bounds save reads that miss the
+/// cache, and cost a little more than they save on a grid that stays in it.
+const BOUNDED_LOOKUPS_FROM: usize = 1 << 20;
 
 #[derive(Clone, Debug)]
 pub struct HeterogeneousMedium {
@@ -47,6 +52,9 @@ pub struct HeterogeneousMedium {
     pub bounded: bool,
     /// Local majorants, where sigma_t is a clamped grid (else `majorant` everywhere).
     pub majorants: Option<MajorantGrid>,
+    /// Bounds on sigma_t's lookups where it is a one-channel clamped grid, with which
+    /// delta tracking decides most tentative collisions unread (`lookup_bounds`).
+    pub bounds: Option<LookupBounds>,
 }
 
 /// What a free flight found: a real collision, or none before `tmax`.
@@ -96,6 +104,10 @@ impl HeterogeneousMedium {
     /// majorants (`set_scale`).
     pub fn new(sigma_t: Volume, albedo: Volume, scale: f32, bounded: bool) -> HeterogeneousMedium {
         let mut m = HeterogeneousMedium {
+            bounds: match sigma_t.values() > BOUNDED_LOOKUPS_FROM {
+                true => LookupBounds::new(&sigma_t),
+                false => None,
+            },
             sigma_t,
             albedo,
             scale,
@@ -138,23 +150,56 @@ impl HeterogeneousMedium {
         rng: &mut Pcg32,
     ) -> (Option<Collision>, Vec3) {
         let mut w = Vec3::ONE;
+        // Grey σ_t: both weights are 1 (exactly, where rounding would make them 1 ± ulp).
+        let grey = self.sigma_t.is_grey();
         let end = self.track(o, d, tmax, rng, |t, major, rng| {
             let p = o + d * t;
-            let sigma_t = self.sigma_t_at(p).into();
-            if rng.next_1d() < real_probability(sigma_t, major) {
-                w *= Vec3::from(real_weight(sigma_t));
-                let albedo = self.albedo.eval(p);
-                return Some(Some(Collision { t, albedo }));
-            }
-            let (weight, stuck) = null_weight(sigma_t, major);
-            if stuck {
-                w = Vec3::ZERO;
-                return Some(None);
-            }
-            w *= Vec3::from(weight);
-            None
+            let u = rng.next_1d();
+            let real = match self.decided_by_bounds(p, u, major) {
+                Some(real) => real,
+                None => {
+                    let sigma_t = self.sigma_t_at(p).into();
+                    let real = u < real_probability(sigma_t, major);
+                    let (weight, stuck) = match real {
+                        true => (real_weight(sigma_t), false),
+                        false => null_weight(sigma_t, major),
+                    };
+                    if stuck {
+                        w = Vec3::ZERO;
+                        return Some(None);
+                    }
+                    if !grey {
+                        w *= Vec3::from(weight);
+                    }
+                    real
+                }
+            };
+            real.then(|| {
+                Some(Collision {
+                    t,
+                    albedo: self.albedo.eval(p),
+                })
+            })
         });
         (end.flatten(), w)
+    }
+
+    /// Whether the lookup bounds alone decide delta tracking's tentative collision at
+    /// `p` with draw `u` at majorant `major`: real (u < P(lo)), null (u ≥ P(hi)), or
+    /// None, the grid to be read. P rises with σ_t, so each answer is the one the
+    /// lookup would give.
+    #[inline]
+    pub fn decided_by_bounds(&self, p: Vec3A, u: f32, major: f32) -> Option<bool> {
+        let bounds = self.bounds.as_ref()?;
+        let [lo, hi] = bounds.at(self.sigma_t.to_local.transform_point3a(p).to_array());
+        let p_of = |v: f32| real_probability((Vec3::splat(v) * self.scale).into(), major);
+        if u < p_of(lo) {
+            Some(true)
+        } else if u >= p_of(hi) {
+            Some(false)
+        } else {
+            None
+        }
     }
 
     /// Ratio tracking: an unbiased estimate of `exp(−∫₀^dist σ_t)` from `o` along `d`.
@@ -285,6 +330,7 @@ mod tests {
             scale: 1.0,
             bounded: true,
             majorants: None,
+            bounds: None,
         }
     }
 
@@ -350,6 +396,7 @@ mod tests {
             albedo: Volume::new(Source::Const(Vec3::splat(0.5)), Affine3A::IDENTITY),
             scale,
             bounded: true,
+            bounds: None,
         }
     }
 

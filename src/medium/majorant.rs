@@ -15,8 +15,9 @@
 
 use glam::Vec3A;
 
-use super::grid::{Filter, GridData, Source, Volume, Wrap};
+use super::grid::{Filter, GridData, Volume};
 use crate::simd::Float;
+use rayon::prelude::*;
 
 /// Cells per axis at most (pbrt-v4 uses 16³).
 const MAX_CELLS: usize = 16;
@@ -46,28 +47,12 @@ impl MajorantGrid {
     /// lookups (Mitsuba's default): None for a constant or a wrapping grid (tracked with
     /// the one global majorant).
     pub fn new(volume: &Volume, scale: f32) -> Option<MajorantGrid> {
-        let Source::Grid {
-            grid,
-            filter,
-            wrap: Wrap::Clamp,
-        } = &volume.source
-        else {
-            return None;
-        };
+        let (grid, filter) = volume.clamped_grid()?;
         let res = grid.res.map(|n| n.min(MAX_CELLS));
-        let mut cells = Vec::with_capacity(res[0] * res[1] * res[2]);
-        let ranges: [Vec<(usize, usize)>; 3] = std::array::from_fn(|k| {
-            (0..res[k])
-                .map(|c| voxels(grid.res[k], res[k], c, *filter))
-                .collect()
-        });
-        for &(z0, z1) in &ranges[2] {
-            for &(y0, y1) in &ranges[1] {
-                for &(x0, x1) in &ranges[0] {
-                    cells.push(block_max(grid, [x0, y0, z0], [x1, y1, z1]) * scale * HEADROOM);
-                }
-            }
-        }
+        let cells = cell_ranges(grid, res, filter)
+            .into_iter()
+            .map(|[_, hi]| hi * scale * HEADROOM)
+            .collect();
         Some(MajorantGrid { res, cells })
     }
 
@@ -243,7 +228,7 @@ impl Dda {
 
 /// The voxels along one axis (of `n`) that a lookup in cell `c` (of `cells`) may read,
 /// with one more on each side for the rounding of the cell's faces.
-fn voxels(n: usize, cells: usize, c: usize, filter: Filter) -> (usize, usize) {
+pub(super) fn voxels(n: usize, cells: usize, c: usize, filter: Filter) -> (usize, usize) {
     let (lo, hi) = (c as f64 / cells as f64, (c + 1) as f64 / cells as f64);
     let (a, b) = match filter {
         // x = q n − 0.5 reads ⌊x⌋ and ⌊x⌋ + 1.
@@ -257,17 +242,53 @@ fn voxels(n: usize, cells: usize, c: usize, filter: Filter) -> (usize, usize) {
     (clamp(a - 1.0), clamp(b + 1.0))
 }
 
-/// The largest value (over channels) in the voxel block [lo, hi] (inclusive).
-fn block_max(g: &GridData, lo: [usize; 3], hi: [usize; 3]) -> f32 {
-    let mut m = 0f32;
-    for z in lo[2]..=hi[2] {
-        for y in lo[1]..=hi[1] {
-            let row = ((z * g.res[1] + y) * g.res[0] + lo[0]) * g.channels;
-            let end = ((z * g.res[1] + y) * g.res[0] + hi[0] + 1) * g.channels;
-            m = g.data[row..end].iter().copied().fold(m, f32::max);
+/// For each of `res` cells over the grid's unit cube (x fastest), the smallest and the
+/// largest value (over channels) of the voxels a lookup in it may read (`voxels`). The
+/// block's extrema are separable: along x within each row, then along y, then z, so
+/// each voxel is read about once (the slabs of z in parallel).
+pub(super) fn cell_ranges(g: &GridData, res: [usize; 3], filter: Filter) -> Vec<[f32; 2]> {
+    let ranges: [Vec<(usize, usize)>; 3] = std::array::from_fn(|k| {
+        (0..res[k])
+            .map(|c| voxels(g.res[k], res[k], c, filter))
+            .collect()
+    });
+    let [nx, ny, _] = g.res;
+    let fold = |a: [f32; 2], b: [f32; 2]| [a[0].min(b[0]), a[1].max(b[1])];
+    let empty = [f32::INFINITY, 0.0];
+    // Per voxel slab z: the (x cell, y cell) ranges, from the (x cell, y) ones.
+    let slabs: Vec<Vec<[f32; 2]>> = (0..g.res[2])
+        .into_par_iter()
+        .map(|z| {
+            let rows: Vec<[f32; 2]> = (0..ny)
+                .flat_map(|y| {
+                    let row = &g.data[(z * ny + y) * nx * g.channels..][..nx * g.channels];
+                    ranges[0].iter().map(move |&(x0, x1)| {
+                        row[x0 * g.channels..(x1 + 1) * g.channels]
+                            .iter()
+                            .fold(empty, |r, &v| fold(r, [v, v]))
+                    })
+                })
+                .collect();
+            let mut out = Vec::with_capacity(res[0] * res[1]);
+            for &(y0, y1) in &ranges[1] {
+                for cx in 0..res[0] {
+                    out.push((y0..=y1).fold(empty, |r, y| fold(r, rows[y * res[0] + cx])));
+                }
+            }
+            out
+        })
+        .collect();
+    let mut cells = Vec::with_capacity(res[0] * res[1] * res[2]);
+    for &(z0, z1) in &ranges[2] {
+        let mut layer = slabs[z0].clone();
+        for slab in &slabs[z0 + 1..=z1] {
+            for (cell, &r) in layer.iter_mut().zip(slab) {
+                *cell = fold(*cell, r);
+            }
         }
+        cells.extend(layer);
     }
-    m
+    cells
 }
 
 /// The ray `o + t d` in `volume`'s local space.
@@ -282,7 +303,7 @@ pub fn to_local(volume: &Volume, o: Vec3A, d: Vec3A) -> (Vec3A, Vec3A) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::medium::grid::{parse_vol, write_vol};
+    use crate::medium::grid::{parse_vol, write_vol, Source, Wrap};
     use crate::sampling::Pcg32;
     use glam::{Affine3A, Vec3};
 

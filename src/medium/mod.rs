@@ -11,6 +11,7 @@
 
 pub mod grid;
 pub mod heterogeneous;
+pub mod lookup_bounds;
 pub mod majorant;
 pub mod phase;
 pub mod tracking;
