@@ -113,8 +113,10 @@ fn bounds_at(h: &HeterogeneousMedium, p: V3, mask: L) -> Option<(L, L)> {
     };
     let (x, y, z) = (cell(0), cell(1), cell(2));
     let (mut lo, mut hi) = ([0f32; WIDTH], [0f32; WIDTH]);
+    // Clamped again as integers: a NaN coordinate would have come through the floats.
+    let at = |v: i32, k: usize| v.clamp(0, res[k] as i32 - 1) as usize;
     for k in lanes_of(mask.move_mask()) {
-        [lo[k], hi[k]] = bounds.cell(x[k] as usize, y[k] as usize, z[k] as usize);
+        [lo[k], hi[k]] = bounds.cell(at(x[k], 0), at(y[k], 1), at(z[k], 2));
     }
     Some((L::from(lo), L::from(hi)))
 }
