@@ -19,7 +19,8 @@
 //! image, without the noise floor). No step is rejected on a noisy loss: each is
 //! bounded (a trust region per unknown), and the estimate is the mean of the iterates
 //! over the last half of the iterations (Polyak averaging: the iterates jitter around
-//! the optimum by the renders' noise).
+//! the optimum by the renders' noise), which render at `SETTLE_SPP_FACTOR` times the
+//! samples, so that their jitter on a curved valley does not pull the mean aside.
 //!
 //! Confidence intervals: the covariance of the least-squares estimate,
 //! s² (JᵀJ)⁻¹ with s² the residual variance, from two renders at independent seeds
@@ -151,8 +152,20 @@ pub fn fit(
     for it in 0..settings.iterations {
         set_values(targets, mi, &unknowns, &x);
         let seed = settings.seed.wrapping_add(2 * it as u64);
-        let e1 = evaluate(targets, settings, mi, &unknowns, seed);
-        let e2 = evaluate(targets, settings, mi, &unknowns, seed + 1);
+        // The iterations whose iterates are averaged render at more samples: their
+        // jitter on a curved valley would otherwise pull the mean off the optimum (a
+        // bias that shrinks with the noise), and halving their steps instead stopped
+        // them short along the valley.
+        let settling = 2 * (it + 1) >= settings.iterations;
+        let now = FitSettings {
+            spp: match settling {
+                true => settings.spp.saturating_mul(SETTLE_SPP_FACTOR),
+                false => settings.spp,
+            },
+            ..settings.clone()
+        };
+        let e1 = evaluate(targets, &now, mi, &unknowns, seed);
+        let e2 = evaluate(targets, &now, mi, &unknowns, seed + 1);
         let loss = dot(&e1.residuals, &e2.residuals) / e1.residuals.len().max(1) as f64;
         losses.push(loss);
         iterates.push(x.clone());
@@ -175,11 +188,6 @@ pub fn fit(
                 true => (gain * 1.5).min(MAX_GAIN),
                 false => (gain * 0.5).max(1.0),
             };
-        }
-        // Over the iterates that are averaged, half steps: the iterates then jitter
-        // around the optimum by less than the noise would carry them along a valley.
-        if 2 * (it + 1) >= settings.iterations {
-            gain = 0.5;
         }
         x = bounded_step(&unknowns, &x, &(&delta * gain));
         previous = Some(delta);
@@ -276,6 +284,10 @@ fn set_values(targets: &mut [FitTarget], mi: u32, unknowns: &[Unknown], x: &[f64
 
 /// The intervals' renders take this many times an iteration's samples.
 const CI_SPP_FACTOR: u32 = 8;
+
+/// The iterations over whose iterates the estimate is averaged render at this many times
+/// `spp`.
+const SETTLE_SPP_FACTOR: u32 = 4;
 
 /// The longest a step is stretched by the step-length adaptation.
 const MAX_GAIN: f64 = 8.0;
