@@ -191,14 +191,11 @@ impl HeterogeneousMedium {
     #[inline]
     pub fn decided_by_bounds(&self, p: Vec3A, u: f32, major: f32) -> Option<bool> {
         let bounds = self.bounds.as_ref()?;
-        let [lo, hi] = bounds.at(self.sigma_t.to_local.transform_point3a(p).to_array());
-        let p_of = |v: f32| real_probability((Vec3::splat(v) * self.scale).into(), major);
-        if u < p_of(lo) {
-            Some(true)
-        } else if u >= p_of(hi) {
-            Some(false)
-        } else {
-            None
+        let lo_hi = bounds.at(self.sigma_t.to_local.transform_point3a(p).to_array());
+        match bounds_decision(lo_hi, u, self.scale, major) {
+            (true, _) => Some(true),
+            (_, true) => Some(false),
+            _ => None,
         }
     }
 
@@ -276,6 +273,15 @@ fn segment_hash(o: Vec3A, d: Vec3A, len: f32) -> f32 {
 #[inline(always)]
 pub fn real_probability<F: Float>(sigma_t: Vector3<F>, major: F) -> F {
     sigma_t.mean() / major
+}
+
+/// Delta tracking's answer from the lookup bounds [lo, hi] (before `scale`) at a
+/// tentative collision with draw `u`: (surely real: u < P(lo), surely null: u ≥ P(hi)),
+/// P rising with σ_t (`lookup_bounds`).
+#[inline(always)]
+pub fn bounds_decision<F: Float>([lo, hi]: [F; 2], u: F, scale: F, major: F) -> (F::Mask, F::Mask) {
+    let p = |v: F| real_probability(Vector3::all(v * scale), major);
+    (u.lt(p(lo)), u.ge(p(hi)))
 }
 
 /// A real collision's weight per channel, σ_t / mean(σ_t) (the albedo apart).

@@ -10,8 +10,8 @@
 //! the reads. In a grid larger than the cache each read is a miss; the cells (a few per
 //! side of a local majorant's) stay in the cache.
 //!
-//! Ratio tracking (shadow rays) weighs each tentative collision by σ_t itself and reads
-//! the grid as before.
+//! Ratio tracking (shadow rays) weighs each tentative collision by σ_t itself: it reads
+//! the grid except, in lanes, in a cell whose hi is 0 (its factor exactly 1).
 
 use super::grid::{Filter, GridData, Volume};
 use super::majorant::cell_ranges;

@@ -16,8 +16,8 @@ use wide::{i32x8, CmpGe, CmpGt, CmpLe, CmpLt};
 use super::lanes::{draw_1d, lanes_of, L, V3, WIDTH};
 use crate::medium::grid::{Filter, GridData, Source, Volume, Wrap};
 use crate::medium::heterogeneous::{
-    null_weight, ratio_roulette, ratio_weight, real_probability, real_weight, HeterogeneousMedium,
-    RATIO_SURVIVAL,
+    bounds_decision, null_weight, ratio_roulette, ratio_weight, real_probability, real_weight,
+    HeterogeneousMedium, RATIO_SURVIVAL,
 };
 use crate::medium::tracking::{optical_depth, MajorantSegment};
 use crate::sampling::Pcg32;
@@ -129,12 +129,8 @@ fn decided_by_bounds(h: &HeterogeneousMedium, p: V3, u: L, major: L, mask: L) ->
     let Some((lo, hi)) = bounds_at(h, p, mask) else {
         return (L::ZERO, L::ZERO);
     };
-    let scale = L::splat(h.scale);
-    let p_of = |v: L| {
-        let v = v * scale;
-        real_probability(V3 { x: v, y: v, z: v }, major)
-    };
-    (mask & u.cmp_lt(p_of(lo)), mask & u.cmp_ge(p_of(hi)))
+    let (real, null) = bounds_decision([lo, hi], u, L::splat(h.scale), major);
+    (mask & real, mask & null)
 }
 
 /// `grid::lookup`'s trilinear filter with clamped indices, in lanes: the local point
