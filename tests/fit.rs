@@ -43,6 +43,7 @@ fn settings(params: &[MediumParam], iterations: u32) -> FitSettings {
         params: params.to_vec(),
         spp: 8,
         iterations,
+        max_iterations: iterations,
         seed: 1,
         cancel: None,
     }
@@ -91,6 +92,56 @@ fn thin_cube_fit_recovers_mitsuba_medium() {
     // Power: the intervals exclude the start (the fit moved, and says how far).
     assert!(!(r.ci[0][0] <= 1.2 && 1.2 <= r.ci[0][1]), "{:?}", r.ci[0]);
     assert!(r.converged);
+}
+
+/// A fit whose estimate is still moving when its planned iterations end goes on (the
+/// plan growing by half) until it settles or reaches `max_iterations`, along the same
+/// iterates; with `max_iterations` equal to the plan it stops there and says it had
+/// not settled.
+#[test]
+fn an_unsettled_fit_goes_on_until_it_settles() {
+    let start = [("sigma_t", "1.2"), ("albedo", "0.6"), ("g", "0")];
+    let params = [MediumParam::SigmaT, MediumParam::Albedo, MediumParam::G];
+    let run = |max_iterations: u32| {
+        let mut targets = vec![FitTarget {
+            scene: cube(&start),
+            image: target(),
+        }];
+        let s = FitSettings {
+            max_iterations,
+            ..settings(&params, 20)
+        };
+        fit(&mut targets, &s, |_| {}).unwrap()
+    };
+    let fixed = run(20);
+    let grown = run(120);
+    println!(
+        "fixed: {} iterations, converged {}, sigma_t {}; grown: {} iterations, converged {}, sigma_t {} {:?}",
+        fixed.iterations, fixed.converged, fixed.values[0], grown.iterations, grown.converged,
+        grown.values[0], grown.ci
+    );
+    assert_eq!(fixed.iterations, 20);
+    assert!(
+        !fixed.converged,
+        "20 iterations from the start should not settle"
+    );
+    // The plans: 20, 30, 45, 68, 102, then the cap.
+    assert!(
+        [30, 45, 68, 102, 120].contains(&grown.iterations),
+        "{}",
+        grown.iterations
+    );
+    assert!(grown.converged || grown.iterations == 120);
+    assert_eq!(
+        fixed.loss[..],
+        grown.loss[..20],
+        "the same iterates up to the first plan"
+    );
+    let off = |r: &mediareg::fit::FitResult| (r.values[0] as f64 / 2.5 - 1.0).abs();
+    assert!(
+        off(&grown) < off(&fixed),
+        "going on brought sigma_t nearer 2.5"
+    );
 }
 
 /// sigma_t and scale enter only as their product: the fit's intervals for both must be

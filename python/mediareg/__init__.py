@@ -126,7 +126,7 @@ def regularize(scene, spp=None, seed=0, threads=None, medium=None, predict="diff
 
 
 def fit(path, targets, params=("sigma_t", "albedo", "g"), medium=None, spp=32,
-        iterations=100, seed=0, search_path=None, **defines):
+        iterations=None, seed=0, search_path=None, **defines):
     """Fits a medium's parameters to target images (``mediareg fit``).
 
     ``path``: the scene file (its camera and lighting render the targets; the fit starts
@@ -134,10 +134,12 @@ def fit(path, targets, params=("sigma_t", "albedo", "g"), medium=None, spp=32,
     {name: value})`` for a target rendered with other scene parameters (another light);
     ``params``: of sigma_t, albedo, g, scale; ``medium``: the medium's XML id (needed
     when there are several); ``spp``: samples per pixel of each iteration's renders;
+    ``iterations``: a fixed count (default: 100, growing up to 400 while the estimate
+    still moves);
     ``defines``: scene parameters for every target. Returns a dict: ``params`` (name:
     value; a chromatic one per channel, ``sigma_t[0]``...), ``ci`` (name: (lo, hi), 95%,
     infinite where the images do not determine it), ``loss`` (per iteration),
-    ``iterations``, ``seconds``. Ctrl-C raises KeyboardInterrupt.
+    ``iterations``, ``converged``, ``seconds``. Ctrl-C raises KeyboardInterrupt.
     """
     targets = [
         (_np.ascontiguousarray(t[0], _np.float32), t[1]) if isinstance(t, tuple)

@@ -18,9 +18,9 @@ use crate::render::interruptible;
 use crate::{bad_arg, param_text, SceneError};
 
 /// fit(path, targets, params=["sigma_t", "albedo", "g"], medium=None, spp=32,
-///     iterations=100, seed=0, search_path=None, **params)
+///     iterations=None, seed=0, search_path=None, **params)
 #[pyfunction]
-#[pyo3(signature = (path, targets, params=None, medium=None, spp=32, iterations=100, seed=0, search_path=None, **defines))]
+#[pyo3(signature = (path, targets, params=None, medium=None, spp=32, iterations=None, seed=0, search_path=None, **defines))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit<'py>(
     py: Python<'py>,
@@ -29,12 +29,12 @@ pub fn fit<'py>(
     params: Option<Vec<String>>,
     medium: Option<String>,
     spp: u32,
-    iterations: u32,
+    iterations: Option<u32>,
     seed: u64,
     search_path: Option<Vec<PathBuf>>,
     defines: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    if spp == 0 || iterations == 0 {
+    if spp == 0 || iterations == Some(0) {
         return Err(bad_arg("spp and iterations must be at least 1"));
     }
     let names = params.unwrap_or_else(|| vec!["sigma_t".into(), "albedo".into(), "g".into()]);
@@ -83,7 +83,8 @@ pub fn fit<'py>(
         medium,
         params,
         spp,
-        iterations,
+        iterations: iterations.unwrap_or(mediareg::fit::DEFAULT_ITERATIONS),
+        max_iterations: iterations.unwrap_or(mediareg::fit::MAX_ITERATIONS),
         seed,
         cancel: Some(Arc::clone(&cancel)),
     };

@@ -21,6 +21,9 @@
 //! over the last half of the iterations (Polyak averaging: the iterates jitter around
 //! the optimum by the renders' noise), which render at `SETTLE_SPP_FACTOR` times the
 //! samples, so that their jitter on a curved valley does not pull the mean aside.
+//! While that mean is still moving (its iterates' trend carries it across its
+//! interval), the fit goes on, up to `max_iterations`: a poorly determined direction
+//! (an optically thick medium seen from one side) is crossed slowly.
 //!
 //! Confidence intervals: the covariance of the least-squares estimate,
 //! s² (JᵀJ)⁻¹ with s² the residual variance, from two renders at independent seeds
@@ -56,7 +59,12 @@ pub struct FitSettings {
     pub medium: Option<String>,
     pub params: Vec<MediumParam>,
     pub spp: u32,
+    /// Iterations planned; the second half of them are averaged.
     pub iterations: u32,
+    /// While the averaged iterates are still moving, the plan grows by half (the
+    /// averaged window with it) up to this many iterations; `iterations` for a fixed
+    /// count.
+    pub max_iterations: u32,
     pub seed: u64,
     /// Set to stop after the iteration under way (the best so far is returned).
     pub cancel: Option<Arc<AtomicBool>>,
@@ -65,6 +73,8 @@ pub struct FitSettings {
 /// Where an iteration left the fit (for a progress line).
 pub struct Progress<'a> {
     pub iteration: u32,
+    /// The iterations planned now (it grows while the fit has not settled).
+    pub planned: u32,
     pub loss: f64,
     pub unknowns: &'a [Unknown],
     pub values: &'a [f32],
@@ -149,61 +159,106 @@ pub fn fit(
     let mut losses = Vec::new();
     let mut iterates = Vec::new();
     let (mut gain, mut previous) = (1.0f64, None::<DVector<f64>>);
-    for it in 0..settings.iterations {
-        set_values(targets, mi, &unknowns, &x);
-        let seed = settings.seed.wrapping_add(2 * it as u64);
-        // The iterations whose iterates are averaged render at more samples: their
-        // jitter on a curved valley would otherwise pull the mean off the optimum (a
-        // bias that shrinks with the noise), and halving their steps instead stopped
-        // them short along the valley.
-        let settling = 2 * (it + 1) >= settings.iterations;
-        let now = FitSettings {
-            spp: match settling {
-                true => settings.spp.saturating_mul(SETTLE_SPP_FACTOR),
-                false => settings.spp,
-            },
-            ..settings.clone()
-        };
-        let e1 = evaluate(targets, &now, mi, &unknowns, seed);
-        let e2 = evaluate(targets, &now, mi, &unknowns, seed + 1);
-        let loss = dot(&e1.residuals, &e2.residuals) / e1.residuals.len().max(1) as f64;
-        losses.push(loss);
-        iterates.push(x.clone());
-        let values: Vec<f32> = unknowns.iter().zip(&x).map(|(u, &x)| u.from_x(x)).collect();
-        progress(&Progress {
-            iteration: it + 1,
-            loss,
-            unknowns: &unknowns,
-            values: &values,
-        });
-        if cancelled() {
-            break;
-        }
-        let delta = gauss_newton(&e1, &e2);
-        // Step-length adaptation: steps that keep their direction lengthen the next
-        // (a poorly determined direction, where render noise on JᵀJ shortens the Gauss–
-        // Newton step, is crossed in fewer iterations); a reversal shortens it again.
-        if let Some(p) = &previous {
-            gain = match p.dot(&delta) > 0.0 {
-                true => (gain * 1.5).min(MAX_GAIN),
-                false => (gain * 0.5).max(1.0),
+    let mut planned = settings.iterations;
+    let mut it = 0;
+    loop {
+        while it < planned && !cancelled() {
+            set_values(targets, mi, &unknowns, &x);
+            let seed = settings.seed.wrapping_add(2 * it as u64);
+            // The iterations whose iterates are averaged render at more samples: their
+            // jitter on a curved valley would otherwise pull the mean off the optimum (a
+            // bias that shrinks with the noise), and halving their steps instead stopped
+            // them short along the valley.
+            let settling = 2 * (it + 1) >= settings.iterations;
+            let now = FitSettings {
+                spp: match settling {
+                    true => settings.spp.saturating_mul(SETTLE_SPP_FACTOR),
+                    false => settings.spp,
+                },
+                ..settings.clone()
             };
+            let e1 = evaluate(targets, &now, mi, &unknowns, seed);
+            let e2 = evaluate(targets, &now, mi, &unknowns, seed + 1);
+            let loss = dot(&e1.residuals, &e2.residuals) / e1.residuals.len().max(1) as f64;
+            losses.push(loss);
+            iterates.push(x.clone());
+            let values: Vec<f32> = unknowns.iter().zip(&x).map(|(u, &x)| u.from_x(x)).collect();
+            it += 1;
+            progress(&Progress {
+                iteration: it,
+                planned,
+                loss,
+                unknowns: &unknowns,
+                values: &values,
+            });
+            if cancelled() {
+                break;
+            }
+            let delta = gauss_newton(&e1, &e2);
+            // Step-length adaptation: steps that keep their direction lengthen the next
+            // (a poorly determined direction, where render noise on JᵀJ shortens the
+            // Gauss–Newton step, is crossed in fewer iterations); a reversal shortens it.
+            if let Some(p) = &previous {
+                gain = match p.dot(&delta) > 0.0 {
+                    true => (gain * 1.5).min(MAX_GAIN),
+                    false => (gain * 0.5).max(1.0),
+                };
+            }
+            x = bounded_step(&unknowns, &x, &(&delta * gain));
+            previous = Some(delta);
         }
-        x = bounded_step(&unknowns, &x, &(&delta * gain));
-        previous = Some(delta);
+        if iterates.is_empty() {
+            iterates.push(x.clone()); // cancelled before the first render
+        }
+        let estimate = conclude(targets, settings, mi, &unknowns, &iterates);
+        // Not settled yet: go on, the averaged window growing with the plan.
+        if estimate.converged || planned >= settings.max_iterations || cancelled() {
+            let Estimate {
+                values,
+                ci,
+                converged,
+            } = estimate;
+            return Ok(FitResult {
+                unknowns,
+                values,
+                ci,
+                converged,
+                iterations: losses.len() as u32,
+                loss: losses,
+                seconds: start.elapsed().as_secs_f64(),
+            });
+        }
+        planned = (planned + planned.div_ceil(2)).min(settings.max_iterations);
     }
-    // The mean of the last half of the iterates.
+}
+
+/// The estimate from a fit's iterates so far.
+struct Estimate {
+    values: Vec<f32>,
+    ci: Vec<[f32; 2]>,
+    converged: bool,
+}
+
+/// The mean of the last half of the iterates (Polyak averaging), its intervals, and
+/// whether it has settled. Leaves the estimate in the targets' scenes.
+fn conclude(
+    targets: &mut [FitTarget],
+    settings: &FitSettings,
+    mi: u32,
+    unknowns: &[Unknown],
+    iterates: &[Vec<f64>],
+) -> Estimate {
     let tail = &iterates[iterates.len() / 2..];
     let best_x: Vec<f64> = (0..unknowns.len())
         .map(|i| tail.iter().map(|x| x[i]).sum::<f64>() / tail.len().max(1) as f64)
         .collect();
-    set_values(targets, mi, &unknowns, &best_x);
+    set_values(targets, mi, unknowns, &best_x);
     let values: Vec<f32> = unknowns
         .iter()
         .zip(&best_x)
         .map(|(u, &x)| u.from_x(x))
         .collect();
-    let ci = intervals(targets, settings, mi, &unknowns, &best_x);
+    let ci = intervals(targets, settings, mi, unknowns, &best_x);
     // Still moving: the averaged iterates' trend (a least-squares line through them)
     // carries a value across the window by more than its interval's half-width (the
     // interval then understates the error: the estimate lags the optimum).
@@ -213,15 +268,11 @@ pub fn fit(
         let half_width = 0.5 * (ci[i][1] - ci[i][0]) as f64;
         drift <= half_width || drift.is_nan() || half_width.is_nan()
     });
-    Ok(FitResult {
-        unknowns,
+    Estimate {
         values,
         ci,
         converged,
-        iterations: losses.len() as u32,
-        loss: losses,
-        seconds: start.elapsed().as_secs_f64(),
-    })
+    }
 }
 
 /// The medium to fit, after checking that every target can be fitted.
@@ -288,6 +339,13 @@ const CI_SPP_FACTOR: u32 = 8;
 /// The iterations over whose iterates the estimate is averaged render at this many times
 /// `spp`.
 const SETTLE_SPP_FACTOR: u32 = 4;
+
+/// The iterations a fit plans unless told a count.
+pub const DEFAULT_ITERATIONS: u32 = 100;
+
+/// The most iterations a fit grows to while its estimate is still moving, unless told
+/// a count.
+pub const MAX_ITERATIONS: u32 = 400;
 
 /// The longest a step is stretched by the step-length adaptation.
 const MAX_GAIN: f64 = 8.0;

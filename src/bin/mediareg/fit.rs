@@ -42,9 +42,10 @@ pub struct FitArgs {
     /// Samples per pixel of each iteration's render.
     #[arg(long, default_value_t = 32)]
     pub spp: u32,
-    /// Iterations (renders of every target).
-    #[arg(long, default_value_t = 100)]
-    pub iterations: u32,
+    /// Iterations (renders of every target). Default: 100, growing by half at a time
+    /// up to 400 while the estimate is still moving.
+    #[arg(long)]
+    pub iterations: Option<u32>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Number of render threads (default: all cores).
@@ -72,7 +73,7 @@ fn split_defines(list: &str) -> Vec<String> {
 }
 
 pub fn run(args: FitArgs) -> Result<()> {
-    if args.spp == 0 || args.iterations == 0 {
+    if args.spp == 0 || args.iterations == Some(0) {
         bail!("--spp and --iterations must be at least 1");
     }
     set_threads(args.threads)?;
@@ -102,7 +103,8 @@ pub fn run(args: FitArgs) -> Result<()> {
         medium: args.medium.clone(),
         params,
         spp: args.spp,
-        iterations: args.iterations,
+        iterations: args.iterations.unwrap_or(fit::DEFAULT_ITERATIONS),
+        max_iterations: args.iterations.unwrap_or(fit::MAX_ITERATIONS),
         seed: args.seed,
         cancel: Some(Arc::clone(&INTERRUPT)),
     };
@@ -123,7 +125,7 @@ pub fn run(args: FitArgs) -> Result<()> {
         eprintln!(
             "[{:>3}/{}] loss {:.4e}  {}",
             p.iteration,
-            settings.iterations,
+            p.planned,
             p.loss,
             values.join(" ")
         );
