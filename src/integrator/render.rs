@@ -225,22 +225,25 @@ impl Blocks {
         }
     }
 
+    /// Splats a sample into every image. The optional images are developed with the
+    /// radiance's weight sums (`develop_by`), which are theirs too (the same positions
+    /// and filter), so a zero value, which adds nothing to a weighted sum, is not
+    /// splatted: most samples see no emitter and many never meet the medium.
     fn put(&mut self, p: (f32, f32), s: &PathSample, filter: &Rfilter) {
         self.radiance.put(p, s.radiance, filter);
-        if let Some(b) = &mut self.second {
-            b.put(p, s.second, filter);
-        }
-        if let Some(b) = &mut self.d_sigma {
-            b.put(p, s.d_sigma, filter);
-        }
-        if let Some(b) = &mut self.d_g {
-            b.put(p, s.d_g, filter);
-        }
-        if let Some(b) = &mut self.seen {
-            b.put(p, s.seen_emission, filter);
-        }
-        if let Some(b) = &mut self.alpha {
-            b.put(p, Vec3::splat(s.valid as u8 as f32), filter);
+        let alpha = Vec3::splat(s.valid as u8 as f32);
+        for (b, v) in [
+            (&mut self.second, s.second),
+            (&mut self.d_sigma, s.d_sigma),
+            (&mut self.d_g, s.d_g),
+            (&mut self.seen, s.seen_emission),
+            (&mut self.alpha, alpha),
+        ] {
+            if let Some(b) = b {
+                if v != Vec3::ZERO {
+                    b.put(p, v, filter);
+                }
+            }
         }
     }
 
@@ -419,7 +422,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     let as_image = |b: &ImageBlock| Image {
         width: cw,
         height: ch,
-        pixels: b.develop(),
+        pixels: b.develop_by(&full.radiance),
     };
     let mut image = as_image(&full.radiance);
     let mut seen_emission = full.seen.as_ref().map(as_image);

@@ -11,6 +11,15 @@
 //! m and b are independent renders. *Best* is the baseline (volpath, volpath_oidn,
 //! volpath_filtered) of least mean corrected MSE in the same scene and accounting.
 //!
+//! Where m and b were rendered at the same seeds (pairs (x_i, y_i) that share samples,
+//! as `regularize --frames 1` shares its first samples with a plain render at its seed),
+//! their errors move together, and the paired form is the tighter, valid one: with
+//! d_i = x_i − R y_i,
+//!
+//!   SE(R)² ≈ s_d² / (n ȳ²),                                                      (S2)
+//!
+//! t with n − 1 degrees of freedom (`paired_ratio_interval`).
+//!
 //! The correction's own standard error (`metrics::correction_se`) is common to every row
 //! of a scene, so it moves all of them together.
 
@@ -76,6 +85,29 @@ pub fn ratio_interval(x: &[f64], y: &[f64]) -> Option<[f64; 3]> {
     };
     // image::stats' quantile: the one place that handles a huge ν (statrs' does not finish).
     let t = t_quantile(dof.max(1.0), 0.975);
+    Some([r, r - t * se, r + t * se])
+}
+
+/// (S2): `[R, low, high]` for the ratio of the means of paired `x` over `y` (the same
+/// seeds, in the same order); the bounds NaN for one pair; None where the lengths
+/// differ, there are none, or a mean is not positive.
+pub fn paired_ratio_interval(x: &[f64], y: &[f64]) -> Option<[f64; 3]> {
+    if x.is_empty() || x.len() != y.len() {
+        return None;
+    }
+    let ((mx, _), (my, _)) = (mean_var(x), mean_var(y));
+    if !(mx > 0.0 && my > 0.0) {
+        return None;
+    }
+    let r = mx / my;
+    let d: Vec<f64> = x.iter().zip(y).map(|(x, y)| x - r * y).collect();
+    let (_, vd) = mean_var(&d);
+    if x.len() < 2 {
+        return Some([r, f64::NAN, f64::NAN]);
+    }
+    let n = x.len() as f64;
+    let se = (vd / n).sqrt() / my;
+    let t = t_quantile(n - 1.0, 0.975);
     Some([r, r - t * se, r + t * se])
 }
 
@@ -179,6 +211,56 @@ mod tests {
         assert!(band.contains(&rate), "coverage {rate}");
         assert!(!band.contains(&rate_99), "a 99% interval passes: {rate_99}");
         assert!(!band.contains(&rate_90), "a 90% interval passes: {rate_90}");
+    }
+
+    /// Pairs sharing most of their noise (x = 2·(1 + 0.2 g + 0.05 h), y = 1 + 0.2 g), 8
+    /// seeds: the paired interval must cover 2 at about its level in 4000 trials (and a
+    /// 99% or 90% width must not), and be narrower than the unpaired (S1) one, which
+    /// ignores that the pairs move together.
+    #[test]
+    fn the_paired_interval_covers_at_its_level_and_is_narrower_for_shared_noise() {
+        let mut state = 777u64;
+        let mut gauss = || {
+            let mut u = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        };
+        let trials = 4000;
+        let widths = [1.0, 2.576 / 1.96, 1.645 / 1.96];
+        let mut covered = [0usize; 3];
+        let mut narrower = 0;
+        for _ in 0..trials {
+            let (mut x, mut y) = (vec![], vec![]);
+            for _ in 0..8 {
+                let (g, h) = (gauss(), gauss());
+                x.push(2.0 * (1.0 + 0.2 * g + 0.05 * h));
+                y.push(1.0 + 0.2 * g);
+            }
+            let [r, _, hi] = paired_ratio_interval(&x, &y).unwrap();
+            for (c, w) in covered.iter_mut().zip(widths) {
+                *c += ((2.0 - r).abs() <= w * (hi - r)) as usize;
+            }
+            let [_, _, unpaired_hi] = ratio_interval(&x, &y).unwrap();
+            narrower += (hi - r < unpaired_hi - r) as usize;
+        }
+        let [rate, rate_99, rate_90] = covered.map(|c| c as f64 / trials as f64);
+        println!("paired coverage {rate} (99% width {rate_99}, 90% width {rate_90}), narrower in {narrower}");
+        let band = 0.94..=0.965;
+        assert!(band.contains(&rate), "coverage {rate}");
+        assert!(!band.contains(&rate_99), "a 99% interval passes: {rate_99}");
+        assert!(!band.contains(&rate_90), "a 90% interval passes: {rate_90}");
+        assert!(
+            narrower > trials * 99 / 100,
+            "narrower in {narrower} of {trials}"
+        );
+        assert_eq!(paired_ratio_interval(&[1.0], &[1.0, 2.0]), None);
+        let [r, lo, _] = paired_ratio_interval(&[3.0], &[1.0]).unwrap();
+        assert!(r == 3.0 && lo.is_nan());
     }
 
     #[test]

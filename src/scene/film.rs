@@ -301,13 +301,21 @@ impl ImageBlock {
 
     /// The developed image (interior only): Σ w L / Σ w, row-major RGB.
     pub fn develop(&self) -> Vec<[f32; 3]> {
+        self.develop_by(self)
+    }
+
+    /// Σ wL over the weight sums Σ w of `weights`, a block of the same shape that
+    /// received every sample this one received (and others of value zero).
+    pub fn develop_by(&self, weights: &ImageBlock) -> Vec<[f32; 3]> {
+        assert_eq!((self.size, self.border), (weights.size, weights.border));
         let fw = self.full_width();
         let mut out = Vec::with_capacity(self.size.0 * self.size.1);
         for y in 0..self.size.1 {
             for x in 0..self.size.0 {
-                let p = self.data[(y + self.border) * fw + x + self.border];
-                out.push(if p[3] > 0.0 {
-                    [p[0] / p[3], p[1] / p[3], p[2] / p[3]]
+                let i = (y + self.border) * fw + x + self.border;
+                let (p, w) = (self.data[i], weights.data[i][3]);
+                out.push(if w > 0.0 {
+                    [p[0] / w, p[1] / w, p[2] / w]
                 } else {
                     [0.0; 3]
                 });
@@ -354,6 +362,37 @@ mod tests {
                 assert!((p[0] - 2.0).abs() < 1e-5, "{f:?}: {p:?}");
             }
         }
+    }
+
+    /// A block that skipped its zero-valued samples, developed by the weights of one
+    /// that took them all, is the block that took them all, to the bit (what
+    /// `render`'s optional images rely on); a block missing a nonzero sample is not.
+    #[test]
+    fn developing_by_anothers_weights_skips_zero_samples_exactly() {
+        let mut rng = crate::sampling::Pcg32::new(9, 2);
+        let f = Rfilter::Gaussian { stddev: 0.5 };
+        let (mut all, mut nonzero, mut short) = (
+            ImageBlock::new((0, 0), (8, 6), f.border()),
+            ImageBlock::new((0, 0), (8, 6), f.border()),
+            ImageBlock::new((0, 0), (8, 6), f.border()),
+        );
+        for i in 0..500 {
+            let pos = (rng.next_1d() * 8.0, rng.next_1d() * 6.0);
+            let v = match rng.next_1d() < 0.7 {
+                true => Vec3::ZERO,
+                false => Vec3::new(rng.next_1d(), 2.0, rng.next_1d()),
+            };
+            all.put(pos, v, &f);
+            if v != Vec3::ZERO {
+                nonzero.put(pos, v, &f);
+                if i % 7 != 0 {
+                    short.put(pos, v, &f); // misses some nonzero samples
+                }
+            }
+        }
+        assert_eq!(nonzero.develop_by(&all), all.develop());
+        assert_ne!(short.develop_by(&all), all.develop());
+        assert_ne!(nonzero.develop(), all.develop(), "its own weights differ");
     }
 
     /// Every pixel's weight in a splat is w(x)·w(y) of its centre's offsets, to f32
