@@ -10,8 +10,6 @@
 
 mod common;
 
-use mediareg::denoise::AuxUse;
-use mediareg::integrator::{self, denoised, RenderOptions};
 use mediareg::regularize::{self, choices, Choices};
 use mediareg::report::metrics::mse_against;
 
@@ -110,16 +108,8 @@ fn below_the_check_one_frame_is_render_denoise_oidn() {
     let scene = load_seeded(&root().join("mitsuba_scenes/medium_cube.xml"), &[], 16, 5);
     let out = one_frame(&scene);
     assert!(out.oidn_check.is_none(), "16 spp is below the check");
-    let r = integrator::render(
-        &scene,
-        &scene.shot,
-        &RenderOptions {
-            seen_emission: true,
-            ..Default::default()
-        },
-    );
-    let d = denoised::oidn(&scene, &scene.shot, &r, AuxUse::None, None).unwrap();
-    assert_eq!(out.source.pixels, r.image.pixels, "the plain render");
+    let (plain, d) = common::plain_and_oidn_at(&scene, &scene.shot);
+    assert_eq!(out.source.pixels, plain.pixels, "the plain render");
     // Bit for bit: OIDN's input scale is computed in order (`oidn::autoexposure`), not by its
     // parallel sum, which made this differ 1 run in 2 beside the other test of this file.
     let bits = |p: &[[f32; 3]]| p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
@@ -127,4 +117,32 @@ fn below_the_check_one_frame_is_render_denoise_oidn() {
         bits(&out.predicted.pixels) == bits(&d.pixels),
         "its OIDN differs from render --denoise oidn's"
     );
+}
+
+/// Above the check, the frame's samples are M, A and B: three ranges of the shot's own
+/// streams, which together are the plain render of all N spp. So the one-frame plain
+/// image is that render and, where OIDN is kept, the output `render --denoise oidn`'s,
+/// both up to the rounding of joining three images by their filter weights. Seen failing with A and B rendered
+/// from seeds of their own (differences of a few percent: other samples).
+#[test]
+fn above_the_check_one_frame_is_the_plain_render_of_all_its_samples() {
+    let scene = load_seeded(&root().join("mitsuba_scenes/medium_cube.xml"), &[], 64, 5);
+    let out = one_frame(&scene);
+    let check = out.oidn_check.as_ref().expect("64 spp is above the check");
+    assert!(check.chose_oidn, "OIDN lowers the cube's error 7-14x");
+    let (plain, d) = common::plain_and_oidn_at(&scene, &scene.shot);
+    let largest_difference = |a: &[[f32; 3]], b: &[[f32; 3]]| {
+        a.iter()
+            .flatten()
+            .zip(b.iter().flatten())
+            .map(|(x, y)| (x - y).abs() / x.abs().max(y.abs()).max(1e-3))
+            .fold(0.0f32, f32::max)
+    };
+    let differs = largest_difference(&out.source.pixels, &plain.pixels);
+    assert!(
+        differs < 1e-5,
+        "the plain image differs by {differs} (relative)"
+    );
+    let oidn = largest_difference(&out.predicted.pixels, &d.pixels);
+    assert!(oidn < 1e-4, "the OIDN image differs by {oidn} (relative)");
 }

@@ -79,6 +79,29 @@ fn weighted_mean<'a>(
     mean
 }
 
+/// Renders of one film joined as one: per pixel Σ_r W_r L_r / Σ_r W_r, W_r the sum of
+/// the filter weights render r gave the pixel. For renders of disjoint sample ranges of
+/// one seed this is the render of all their samples, up to rounding (a pixel's image is
+/// Σ wL / Σ w over its samples); (M1) is that only for a box filter.
+pub fn mean_by_weights(renders: &[(&Image, &[f32])]) -> Image {
+    let first = renders[0].0;
+    let pixels = (0..first.pixels.len()).map(|i| {
+        let (mut sum, mut weight) = ([0f64; 3], 0f64);
+        for (img, w) in renders {
+            let w = w[i] as f64;
+            weight += w;
+            for (s, v) in sum.iter_mut().zip(img.pixels[i]) {
+                *s += w * v as f64;
+            }
+        }
+        match weight > 0.0 {
+            true => sum.map(|v| v / weight),
+            false => [0.0; 3],
+        }
+    });
+    to_image(first.width, first.height, pixels)
+}
+
 /// (M1) alone, for images of one size already in memory: the mean of renders of one
 /// shot weighted by their samples per pixel (no variance, no checks of the headers).
 pub fn mean_by_spp(chunks: &[(&Image, u64)]) -> Image {

@@ -68,6 +68,11 @@ pub struct RenderOptions {
     /// (`integrator::packet`) takes the scene: its reference, for tests and A/B timings.
     /// The environment variable `MEDIAREG_PATHS=scalar` does the same.
     pub scalar_paths: bool,
+    /// The index of the first sample of each pixel's stream this render takes: it
+    /// renders samples `first_sample .. first_sample + spp`. Renders of consecutive
+    /// ranges of one seed are together the render of all their samples, stratified as
+    /// one (each sample's draws depend on its index alone, `sampling::padded`).
+    pub first_sample: u32,
 }
 
 impl RenderOptions {
@@ -188,6 +193,10 @@ pub struct Rendered {
     pub d_g: Option<Image>,
     pub seen_emission: Option<Image>,
     pub alpha: Option<Image>,
+    /// Per pixel, the sum of the filter weights of the samples it received: renders of
+    /// consecutive sample ranges (`RenderOptions::first_sample`) join by these into the
+    /// render of all their samples (`image::merge::mean_by_weights`).
+    pub weights: Vec<f32>,
     pub stats: RenderStats,
 }
 
@@ -344,6 +353,8 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     let mut invalid_samples = 0;
     let mut spp_done = 0;
     for (s0, s1) in pass_schedule(spp) {
+        let first = opts.first_sample;
+        let (s0, s1) = (first.saturating_add(s0), first.saturating_add(s1));
         // Each tile renders samples s0..s1 of its pixels into fresh blocks; None if
         // cancelled on the way (the whole pass is then dropped).
         let mut pass = new_blocks();
@@ -407,7 +418,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         for (b, pb) in acc.iter_mut().zip(&pass) {
             pb.accumulate_into(b);
         }
-        spp_done = s1;
+        spp_done = s1 - first;
         if cancelled() {
             break;
         }
@@ -442,6 +453,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         d_g: full.d_g.as_ref().map(as_image),
         seen_emission,
         alpha: full.alpha.as_ref().map(as_image),
+        weights: full.radiance.weight_sums(),
         stats: RenderStats {
             spp: spp_done,
             samples: (cw * ch) as u64 * spp_done as u64,

@@ -3,10 +3,10 @@
 //! estimator (the split R_s + D is plain volpath's estimate on every path), and the one
 //! question is whether OIDN lowers its error. A denoiser can raise it (measured: a camera
 //! inside a medium, a furnace, a converged image), so it is checked without a reference.
-//! The frame is rendered as M (N − 2p spp) and two small independent renders A and B
-//! (p spp each), all three the plain image's samples. For X = A or B, independent of M
-//! and unbiased, E (O − X)² − E (M − X)² = MSE(O) − Var(M) for O = OIDN(M): X's own
-//! variance cancels, so
+//! The frame's N samples per pixel are rendered as three ranges of the shot's own
+//! streams: M (samples 0..N − 2p), A and B (p each, the last 2p). For X = A or B,
+//! unbiased and independent of M, E (O − X)² − E (M − X)² = MSE(O) − Var(M) for
+//! O = OIDN(M): X's own variance cancels, so
 //!
 //!   Δ = mean ½ Σ_{X = A, B} [(O − X)² − (M − X)²]  ≈  MSE(OIDN(M)) − Var(M)       (F1)
 //!
@@ -17,22 +17,40 @@
 //!   Δ + Var(M) ≤ Var(M) (N − 2p) / N,                                              (F3)
 //!
 //! and then on all N spp (one OIDN run more than plain + OIDN; more samples only lower
-//! its error); otherwise the image is plain volpath. The rule takes no margin: a wrong
-//! choice happens where the two errors are within the estimate's noise of each other,
-//! which is where it costs little. Δ's standard error (over 8×8-pixel blocks, as OIDN's
-//! output is correlated between neighbouring pixels) is reported beside it.
+//! its error); otherwise the image is plain volpath. Δ's standard error (over 8×8-pixel
+//! blocks, as OIDN's output is correlated between neighbouring pixels) is reported
+//! beside it.
+//!
+//! Why ranges of one stream and not renders with seeds of their own: the three ranges
+//! together are `render`'s N spp, stratified as one (`sampling::padded`), so the plain
+//! image is the plain render and OIDN's image `render --denoise oidn`'s, up to rounding.
+//! Three seeds of their own stratify less together, which cost the Candle's flame edges
+//! about a fifth more error than `render --denoise oidn` at the same spp
+//! (docs/regularize.md). The price is that A and B are not quite independent of M: the
+//! stratification across a pixel's samples correlates them negatively, which lowers Δ by
+//! about 2 |Cov(X, M)| and so leans the check towards OIDN. Samples spent on A and B are
+//! no longer lost to the image, so they are a larger share (`CHECK_SHARE`): M's fewer
+//! samples make (F3) stricter on OIDN, which offsets the lean. The
+//! rule takes no margin: a wrong choice happens where the two errors are within the
+//! estimate's noise of each other, which is where it costs little.
 
 use std::time::Instant;
 
 use crate::denoise::{self, AuxUse, OidnError};
-use crate::image::merge::mean_by_spp;
+use crate::image::merge::mean_by_weights;
 use crate::image::Image;
 use crate::integrator::{aovs, render, RenderOptions, Rendered};
 use crate::scene::shot::Shot;
 use crate::scene::Scene;
 
-/// The share of a render's samples A and B take together.
-pub const CHECK_SHARE: f64 = 0.1;
+/// The share of a render's samples A and B take together. They stay in the image; at a
+/// tenth, the near tie of the chromatic sphere (OIDN 1.2× plain volpath's error at
+/// about 3000 spp) chose OIDN on 3 of 8 seeds, at a fifth on none of 8.
+pub const CHECK_SHARE: f64 = 0.2;
+
+/// Below this many spp there is no check: OIDN is used (at a few spp it is by far the
+/// better, docs/denoise.md).
+pub const MIN_CHECK_SPP: u32 = 20;
 
 /// What the check measured (per value: pixels × channels).
 #[derive(Clone, Debug)]
@@ -96,9 +114,8 @@ fn measure(o: &Image, m: &Image, a: &Image, b: &Image) -> (f64, f64, f64) {
     (var_sum / n, mean_block * k / n, (k * var_block).sqrt() / n)
 }
 
-/// `shot` (N = `shot.spp`) rendered plain and through OIDN where (F3) holds. Below
-/// 2 / `CHECK_SHARE` spp there is no check: OIDN is used (at a few spp it is by far the
-/// better, docs/denoise.md).
+/// `shot` (N = `shot.spp`) rendered plain and through OIDN where (F3) holds (always
+/// through OIDN below `MIN_CHECK_SPP`).
 pub fn plain_or_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> {
     let n = shot.spp;
     let options = RenderOptions {
@@ -110,7 +127,7 @@ pub fn plain_or_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> 
         aovs::sharpen_seen_emission(scene, shot, &mut e);
         e
     };
-    if p == 0 {
+    if n < MIN_CHECK_SPP || p == 0 {
         let r = render(scene, shot, &options);
         let started = Instant::now();
         let e = sharpened(seen(&r).clone());
@@ -125,24 +142,29 @@ pub fn plain_or_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> 
             invalid_samples: r.stats.invalid_samples,
         });
     }
-    // Seeds far from the shot's (and within the 32 bits a seed has, as in Mitsuba).
-    let other = |k: u64| shot.seed.wrapping_add(k * 0x6a09_e667) & 0xffff_ffff;
-    let a = render(scene, &shot.with(p, other(1)), &options);
-    let b = render(scene, &shot.with(p, other(2)), &options);
-    let m = render(scene, &shot.with(n - 2 * p, shot.seed), &options);
+    // M, A and B are the samples 0..N − 2p, N − 2p..N − p and N − p..N of the shot's
+    // own streams: together they are `render`'s N spp, stratified as one.
+    let range = |first: u32, spp: u32| {
+        let opts = RenderOptions {
+            first_sample: first,
+            ..options.clone()
+        };
+        render(scene, &shot.with(spp, shot.seed), &opts)
+    };
+    let m = range(0, n - 2 * p);
+    let a = range(n - 2 * p, p);
+    let b = range(n - p, p);
     let started = Instant::now();
-    let (p64, m64) = (p as u64, (n - 2 * p) as u64);
-    let plain = mean_by_spp(&[(&m.image, m64), (&a.image, p64), (&b.image, p64)]);
+    let joined = |image: &dyn Fn(&Rendered) -> &Image| {
+        mean_by_weights(&[&m, &a, &b].map(|r| (image(r), r.weights.as_slice())))
+    };
+    let plain = joined(&|r| &r.image);
     // One sharpened seen emission serves both OIDN runs: it differs from M's own only
     // where the samples disagree, at edges, which sharpening replaces in both alike.
-    let seen_emission = sharpened(mean_by_spp(&[
-        (seen(&m), m64),
-        (seen(&a), p64),
-        (seen(&b), p64),
-    ]));
+    let seen_emission = sharpened(joined(&seen));
     let oidn_m = denoise::oidn(&m.image, Some(&seen_emission), None, AuxUse::None)?;
     let (var_a, delta, delta_se) = measure(&oidn_m, &m.image, &a.image, &b.image);
-    let var_m = var_a * p as f64 / m64 as f64;
+    let var_m = var_a * p as f64 / (n - 2 * p) as f64;
     let oidn_error = delta + var_m;
     let plain_variance = var_m * (n - 2 * p) as f64 / n as f64;
     let chose_oidn = oidn_error <= plain_variance;

@@ -304,6 +304,17 @@ impl ImageBlock {
         self.develop_by(self)
     }
 
+    /// The weight sums Σ w of the interior, row-major: with `develop`'s image, what
+    /// joins renders of one film into the render of all their samples
+    /// (`image::merge::mean_by_weights`).
+    pub fn weight_sums(&self) -> Vec<f32> {
+        let fw = self.full_width();
+        (0..self.size.1)
+            .flat_map(|y| (0..self.size.0).map(move |x| (y + self.border) * fw + x + self.border))
+            .map(|i| self.data[i][3])
+            .collect()
+    }
+
     /// Σ wL over the weight sums Σ w of `weights`, a block of the same shape that
     /// received every sample this one received (and others of value zero).
     pub fn develop_by(&self, weights: &ImageBlock) -> Vec<[f32; 3]> {

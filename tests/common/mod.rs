@@ -405,8 +405,16 @@ pub fn plain_and_oidn(
     spp: u32,
     seed: u64,
 ) -> (mediareg::image::Image, mediareg::image::Image) {
+    plain_and_oidn_at(scene, &scene.shot.with(spp, seed + 1000))
+}
+
+/// Plain volpath and `render --denoise oidn` of `shot` itself.
+pub fn plain_and_oidn_at(
+    scene: &Scene,
+    shot: &mediareg::scene::shot::Shot,
+) -> (mediareg::image::Image, mediareg::image::Image) {
     use mediareg::integrator::{self, denoised, RenderOptions};
-    let shot = scene.shot.with(spp, seed + 1000);
+    let shot = shot.clone();
     let r = integrator::render(
         scene,
         &shot,
