@@ -1,6 +1,8 @@
 //! `mediareg merge`: chunks rendered by the command line (distinct seeds) merge into an
 //! image that matches independent renders statistically, with a variance file equal to
-//! the chunks' spread; bad chunks are refused before anything is written.
+//! the chunks' spread; bad chunks are refused before anything is written. Renders of
+//! consecutive sample ranges of one seed join by their filter weights into the render of
+//! all their samples.
 
 mod common;
 
@@ -163,4 +165,50 @@ fn bad_chunks_are_refused_and_nothing_is_written() {
         "{err}"
     );
     assert!(!out.exists() && !dir.join("out_var.exr").exists());
+}
+
+/// Renders of consecutive sample ranges of one seed (`RenderOptions::first_sample`, as
+/// `regularize --frames 1` renders its M, A and B), joined by their filter weights
+/// (`merge::mean_by_weights`), are the render of all their samples up to rounding, with
+/// a Gaussian filter too, whose weights differ between the ranges. The same ranges
+/// joined by their spp (`mean_by_spp`) must not be: that tells the two joins apart.
+#[test]
+fn sample_ranges_joined_by_weights_are_the_render_of_all_their_samples() {
+    use mediareg::image::merge::{mean_by_spp, mean_by_weights};
+    use mediareg::integrator::{render, RenderOptions};
+    let scene = common::load_seeded(&cbox(), &[("filter", "gaussian"), ("res", "48")], 16, 3);
+    let whole = render(&scene, &scene.shot, &RenderOptions::default());
+    let range = |first: u32, spp: u32| {
+        let opts = RenderOptions {
+            first_sample: first,
+            ..Default::default()
+        };
+        render(&scene, &scene.shot.with(spp, scene.shot.seed), &opts)
+    };
+    let parts = [range(0, 10), range(10, 3), range(13, 3)];
+    let largest_difference = |img: &Image| {
+        let pairs = img
+            .pixels
+            .iter()
+            .flatten()
+            .zip(whole.image.pixels.iter().flatten());
+        pairs
+            .map(|(x, y)| (x - y).abs() / x.abs().max(y.abs()).max(1e-3))
+            .fold(0.0f32, f32::max)
+    };
+    let by_weights = mean_by_weights(&parts.each_ref().map(|r| (&r.image, r.weights.as_slice())));
+    let by_spp = mean_by_spp(&[
+        (&parts[0].image, 10),
+        (&parts[1].image, 3),
+        (&parts[2].image, 3),
+    ]);
+    let (w, s) = (largest_difference(&by_weights), largest_difference(&by_spp));
+    assert!(
+        w < 1e-5,
+        "joined by weights, the ranges differ from the render by {w}"
+    );
+    assert!(
+        s > 1e-4,
+        "joined by spp they differ by only {s}: the test cannot tell the joins apart"
+    );
 }

@@ -5,8 +5,8 @@
 //! inside a medium, a furnace, a converged image), so it is checked without a reference.
 //! The frame's N samples per pixel are rendered as three ranges of the shot's own
 //! streams: M (samples 0..N − 2p), A and B (p each, the last 2p). For X = A or B,
-//! unbiased and independent of M, E (O − X)² − E (M − X)² = MSE(O) − Var(M) for
-//! O = OIDN(M): X's own variance cancels, so
+//! unbiased and independent of M (nearly: below), E (O − X)² − E (M − X)² =
+//! MSE(O) − Var(M) for O = OIDN(M): X's own variance cancels, so
 //!
 //!   Δ = mean ½ Σ_{X = A, B} [(O − X)² − (M − X)²]  ≈  MSE(OIDN(M)) − Var(M)       (F1)
 //!
@@ -30,9 +30,9 @@
 //! stratification across a pixel's samples correlates them negatively, which lowers Δ by
 //! about 2 |Cov(X, M)| and so leans the check towards OIDN. Samples spent on A and B are
 //! no longer lost to the image, so they are a larger share (`CHECK_SHARE`): M's fewer
-//! samples make (F3) stricter on OIDN, which offsets the lean. The
-//! rule takes no margin: a wrong choice happens where the two errors are within the
-//! estimate's noise of each other, which is where it costs little.
+//! samples make (F3) stricter on OIDN, which offsets the lean. The rule takes no margin:
+//! a wrong choice happens where the two errors are within the estimate's noise of each
+//! other, which is where it costs little.
 
 use std::time::Instant;
 
