@@ -186,16 +186,8 @@ fn sample_ranges_joined_by_weights_are_the_render_of_all_their_samples() {
         render(&scene, &scene.shot.with(spp, scene.shot.seed), &opts)
     };
     let parts = [range(0, 10), range(10, 3), range(13, 3)];
-    let largest_difference = |img: &Image| {
-        let pairs = img
-            .pixels
-            .iter()
-            .flatten()
-            .zip(whole.image.pixels.iter().flatten());
-        pairs
-            .map(|(x, y)| (x - y).abs() / x.abs().max(y.abs()).max(1e-3))
-            .fold(0.0f32, f32::max)
-    };
+    let largest_difference =
+        |img: &Image| common::largest_relative_difference(&img.pixels, &whole.image.pixels);
     let by_weights = mean_by_weights(&parts.each_ref().map(|r| (&r.image, r.weights.as_slice())));
     let by_spp = mean_by_spp(&[
         (&parts[0].image, 10),

@@ -131,18 +131,11 @@ fn above_the_check_one_frame_is_the_plain_render_of_all_its_samples() {
     let check = out.oidn_check.as_ref().expect("64 spp is above the check");
     assert!(check.chose_oidn, "OIDN lowers the cube's error 7-14x");
     let (plain, d) = common::plain_and_oidn_at(&scene, &scene.shot);
-    let largest_difference = |a: &[[f32; 3]], b: &[[f32; 3]]| {
-        a.iter()
-            .flatten()
-            .zip(b.iter().flatten())
-            .map(|(x, y)| (x - y).abs() / x.abs().max(y.abs()).max(1e-3))
-            .fold(0.0f32, f32::max)
-    };
-    let differs = largest_difference(&out.source.pixels, &plain.pixels);
+    let differs = common::largest_relative_difference(&out.source.pixels, &plain.pixels);
     assert!(
         differs < 1e-5,
         "the plain image differs by {differs} (relative)"
     );
-    let oidn = largest_difference(&out.predicted.pixels, &d.pixels);
+    let oidn = common::largest_relative_difference(&out.predicted.pixels, &d.pixels);
     assert!(oidn < 1e-4, "the OIDN image differs by {oidn} (relative)");
 }

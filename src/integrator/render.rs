@@ -352,8 +352,8 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     let mut acc = new_blocks();
     let mut invalid_samples = 0;
     let mut spp_done = 0;
+    let first = opts.first_sample;
     for (s0, s1) in pass_schedule(spp) {
-        let first = opts.first_sample;
         let (s0, s1) = (first.saturating_add(s0), first.saturating_add(s1));
         // Each tile renders samples s0..s1 of its pixels into fresh blocks; None if
         // cancelled on the way (the whole pass is then dropped).

@@ -414,15 +414,24 @@ pub fn plain_and_oidn_at(
     shot: &mediareg::scene::shot::Shot,
 ) -> (mediareg::image::Image, mediareg::image::Image) {
     use mediareg::integrator::{self, denoised, RenderOptions};
-    let shot = shot.clone();
     let r = integrator::render(
         scene,
-        &shot,
+        shot,
         &RenderOptions {
             seen_emission: true,
             ..Default::default()
         },
     );
-    let d = denoised::oidn(scene, &shot, &r, mediareg::denoise::AuxUse::None, None).unwrap();
+    let d = denoised::oidn(scene, shot, &r, mediareg::denoise::AuxUse::None, None).unwrap();
     (r.image, d)
+}
+
+/// The largest relative difference between two images' values, each over the larger of
+/// the two (at least 1e-3, so that near-black pixels do not dominate).
+pub fn largest_relative_difference(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
+    a.iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .map(|(x, y)| (x - y).abs() / x.abs().max(y.abs()).max(1e-3))
+        .fold(0.0f32, f32::max)
 }
