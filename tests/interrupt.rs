@@ -117,13 +117,7 @@ fn sigint_writes_the_image_so_far_with_its_spp() {
     );
     assert_eq!(read_exr_int_attribute(&full_out, "spp").unwrap(), Some(spp));
     let full = read_exr(&full_out).unwrap();
-    let worst = partial
-        .pixels
-        .iter()
-        .flatten()
-        .zip(full.pixels.iter().flatten())
-        .map(|(a, b)| (a - b).abs() / b.abs().max(1e-3))
-        .fold(0.0f32, f32::max);
+    let worst = common::largest_relative_difference(&partial.pixels, &full.pixels);
     assert!(
         worst < 1e-4,
         "the interrupted image is not the {spp}-spp image: relative difference {worst:e}"
