@@ -80,9 +80,9 @@ pub struct Options {
     /// Choose `factor` with a pilot (`pilot`; the difference predictor only): `chunks`
     /// renders of `spp` samples at each candidate factor.
     pub auto_factor: Option<PilotSize>,
-    /// Pick the target frame's pipeline (the method, its control, plain + OIDN, plain)
-    /// by `pick`'s check; with the difference predictor, OIDN on every frame and more
-    /// than one frame only (else ignored).
+    /// Pick the target frame's pipeline (the method, its control, the guarded control,
+    /// plain + OIDN, plain) by `pick`'s check; with the difference predictor, OIDN on
+    /// every frame and more than one frame only (else ignored).
     pub pick: bool,
     pub show_progress: bool,
 }

@@ -1,22 +1,24 @@
 //! Which pipeline a sequence's target frame comes from, chosen without a reference
 //! (issue 56). With OIDN on every frame, the method's frames hold R_s and D in the same
 //! paths, and R_s + D is plain volpath's estimate path by path. So the same frames give
-//! four images of the target frame:
+//! five images of the target frame:
 //!
 //! * `Split`: OIDN(R_s) + the blend (Eq. 10) of each frame's OIDN(D_k) — the method;
 //! * `Control`: the blend of each frame's OIDN(R_s,k + D_k) — plain radiance through
 //!   the same reuse (`--predict plain`), which smears what changes between frames;
+//! * `GuardedControl`: the control where it agrees with the split, the split where the
+//!   two disagree far more than they typically do (K3) — the control without its smears;
 //! * `PlainOidn`: OIDN(R_s + D) of the target frame alone;
 //! * `Plain`: R_s + D, no denoiser at all.
 //!
 //! Which is best depends on the scene and the budget (docs/paper.md, the sweep). Two
 //! held-out plain renders A and B of the target view at α_t (p spp each, seeds of their
-//! own) are independent of all four, so for each candidate Y
+//! own) are independent of all five, so for each candidate Y
 //!
 //!   E ½[(Y − A)² + (Y − B)²] − E ½(A − B)² = E (Y − A)(Y − B) = MSE(Y)              (K1)
 //!
 //! (A's variance cancels, `fallback`'s (F1) idea with Y in place of OIDN(M)). The noise
-//! of each estimate is mostly A's and B's own, which is common to all four and cancels
+//! of each estimate is mostly A's and B's own, which is common to all five and cancels
 //! in their differences, so each candidate is judged against the split by their
 //! difference: the check leaves the split only for a candidate whose (K1) is below the
 //! split's by `SWITCH_Z` standard errors (K2) of that difference (`choose`), and then
@@ -42,14 +44,16 @@ use super::temporal::{self, Reprojection};
 pub enum Pipeline {
     Split,
     Control,
+    GuardedControl,
     PlainOidn,
     Plain,
 }
 
 impl Pipeline {
-    pub const ALL: [Pipeline; 4] = [
+    pub const ALL: [Pipeline; 5] = [
         Pipeline::Split,
         Pipeline::Control,
+        Pipeline::GuardedControl,
         Pipeline::PlainOidn,
         Pipeline::Plain,
     ];
@@ -58,6 +62,7 @@ impl Pipeline {
         match self {
             Pipeline::Split => "split",
             Pipeline::Control => "control",
+            Pipeline::GuardedControl => "guarded_control",
             Pipeline::PlainOidn => "plain_oidn",
             Pipeline::Plain => "plain",
         }
@@ -71,7 +76,7 @@ pub struct PipelineCheck {
     pub spp_each: u32,
     /// Per candidate (`Pipeline::ALL`'s order): (K1), and the standard error (K2) of its
     /// excess over the chosen one's (0 for the chosen).
-    pub errors: [(f64, f64); 4],
+    pub errors: [(f64, f64); 5],
     pub chosen: Pipeline,
     /// What the check cost beyond the chosen pipeline's own denoising: A and B, the
     /// other pipelines' denoising and blends, and (K1).
@@ -178,12 +183,53 @@ pub const SWITCH_Z: f64 = 1.0;
 /// `errors[i]`: candidate i's (K1); `excess_se[i]`: (K2) of candidate i against the
 /// split. Its picks on the table's scenes, scored against the references, are in
 /// docs/regularize.md ("Which standard error").
-fn choose(errors: &[f64; 4], excess_se: &[f64; 4]) -> usize {
-    (1..4)
+fn choose<const N: usize>(errors: &[f64; N], excess_se: &[f64; N]) -> usize {
+    (1..N)
         .filter(|&i| errors[i] - errors[0] + SWITCH_Z * excess_se[i] < 0.0)
         .chain([0])
         .min_by(|&i, &j| errors[i].total_cmp(&errors[j]))
         .expect("the split is a candidate")
+}
+
+/// How far, in multiples of the split's and the control's median disagreement per
+/// pixel, the two may disagree before a pixel leaves the control: far beyond their
+/// typical difference in noise and blur, so that only smears (a flickering emitter
+/// reprojected, the Candle's flame) fall back to the split.
+pub const GUARD_SPREAD: f32 = 256.0;
+
+/// (K3): per pixel, w · control + (1 − w) · split with w = exp(−½ (d / s)²), d the sum
+/// over channels of |control − split| and s = `GUARD_SPREAD` times d's median over the
+/// image. Both images are already made, so the candidate costs no denoising.
+pub fn guarded_control(split: &Image, control: &Image) -> Image {
+    let d: Vec<f32> = split
+        .pixels
+        .iter()
+        .zip(&control.pixels)
+        .map(|(x, y)| (0..3).map(|c| (y[c] - x[c]).abs()).sum())
+        .collect();
+    let mut sorted = d.clone();
+    let mid = sorted.len() / 2;
+    let s = match sorted.is_empty() {
+        true => 0.0,
+        false => GUARD_SPREAD * *sorted.select_nth_unstable_by(mid, f32::total_cmp).1,
+    };
+    let pixels = split
+        .pixels
+        .iter()
+        .zip(&control.pixels)
+        .zip(&d)
+        .map(|((x, y), &d)| {
+            let w = match s > 0.0 {
+                true => (-0.5 * (d / s).powi(2)).exp(),
+                false => f32::from(d == 0.0),
+            };
+            [0, 1, 2].map(|c| w * y[c] + (1.0 - w) * x[c])
+        })
+        .collect();
+    Image {
+        pixels,
+        ..split.clone()
+    }
 }
 
 /// What the check needs of the run: the scene, the target frame's shot, the frames as
@@ -265,9 +311,12 @@ pub fn check(input: &CheckInput) -> Result<Checked, OidnError> {
     };
     let blended_difference = blend(&differences);
     let blended_control = blend(&controls);
+    let split = sum(&source, &blended_difference);
+    let guarded = guarded_control(&split, &blended_control);
     let mut candidates = [
-        sum(&source, &blended_difference),
+        split,
         blended_control.clone(),
+        guarded,
         controls.swap_remove(0),
         f0.plain(),
     ];
@@ -284,12 +333,13 @@ pub fn check(input: &CheckInput) -> Result<Checked, OidnError> {
     let (own_seconds, own_target_seconds) = match chosen {
         Pipeline::Split => (seconds[0][0], seconds[0][1]),
         Pipeline::Control => (seconds[1][0], seconds[1][1]),
+        Pipeline::GuardedControl => (seconds[0][0] + seconds[1][0], seconds[0][1] + seconds[1][1]),
         Pipeline::PlainOidn => (seconds[1][1], seconds[1][1]),
         Pipeline::Plain => (0.0, 0.0),
     };
     let blended = match chosen {
         Pipeline::Split => Some(blended_difference),
-        Pipeline::Control => Some(blended_control),
+        Pipeline::Control | Pipeline::GuardedControl => Some(blended_control),
         _ => None,
     };
     let image = std::mem::replace(
@@ -418,6 +468,37 @@ mod tests {
             (se / spread - 1.0).abs() < 0.15,
             "(K2) {se:.3e} against the excesses' spread {spread:.3e}"
         );
+    }
+
+    /// (K3) keeps the control where the two images differ as they typically do and the
+    /// split where they differ by far more: split and control alike but for a small
+    /// wobble everywhere, and a smear of 100 in four pixels. Seen failing with the
+    /// weight turned round (the smeared pixels kept).
+    #[test]
+    fn the_guarded_control_leaves_the_control_only_where_it_smears() {
+        let split = ramp(32, 16);
+        let mut wobble = gaussians(11);
+        let smeared = [5usize, 77, 300, 301];
+        let control = map(&split, |k, t| match smeared.contains(&k) {
+            true => t.map(|c| c + 100.0),
+            false => t.map(|c| c + 0.01 * wobble()),
+        });
+        let guarded = guarded_control(&split, &control);
+        for (k, ((g, c), s)) in guarded
+            .pixels
+            .iter()
+            .zip(&control.pixels)
+            .zip(&split.pixels)
+            .enumerate()
+        {
+            let want = if smeared.contains(&k) { s } else { c };
+            for ch in 0..3 {
+                assert!(
+                    (g[ch] - want[ch]).abs() < 1e-4,
+                    "pixel {k}: {g:?}, not {want:?}"
+                );
+            }
+        }
     }
 
     /// The check leaves the split only for a candidate more than `SWITCH_Z` standard
