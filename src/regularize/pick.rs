@@ -83,6 +83,19 @@ pub struct PipelineCheck {
     pub seconds: f64,
 }
 
+impl PipelineCheck {
+    /// Each candidate's (K1) and its (K2) against the chosen one, by name:
+    /// "split 1.234e-5 ± 2.0e-6, control …".
+    pub fn errors_by_name(&self) -> String {
+        Pipeline::ALL
+            .iter()
+            .zip(&self.errors)
+            .map(|(p, (e, se))| format!("{} {e:.3e} ± {se:.1e}", p.as_str()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
 /// A and B together, as a share of one frame's samples. The check runs once per
 /// sequence, so this costs a twenty-second of the sequence's rendering; `fallback`'s
 /// 0.1 (p = 1 at 22 spp) let the Candle's flame, whose pixels are the noisiest of A

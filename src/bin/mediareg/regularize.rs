@@ -269,16 +269,11 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
         );
     }
     if let Some(c) = &r.pipeline_check {
-        let errors: Vec<String> = mediareg::regularize::pick::Pipeline::ALL
-            .iter()
-            .zip(&c.errors)
-            .map(|(p, (e, se))| format!("{} {e:.3e} ± {se:.1e}", p.as_str()))
-            .collect();
         println!(
             "pipeline: {} (squared error, from 2 x {} held-out spp: {}; the check took {:.2} s)",
             c.chosen.as_str(),
             c.spp_each,
-            errors.join(", "),
+            c.errors_by_name(),
             c.seconds
         );
     }

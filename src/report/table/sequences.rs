@@ -197,16 +197,11 @@ fn run_sequence(ctx: &SceneRun, run: &mut TableRun, sequence: &SequenceRun) -> R
         ));
     }
     if let Some(c) = &r.pipeline_check {
-        let errors: Vec<String> = c
-            .errors
-            .iter()
-            .map(|(e, se)| format!("{e:.3e} ± {se:.1e}"))
-            .collect();
         run.notes.push(format!(
-            "{name} seed {seed} {}: the check picked {} (split, control, guarded control, plain + OIDN, plain: {}) in {:.2} s",
+            "{name} seed {seed} {}: the check picked {} ({}) in {:.2} s",
             method.as_str(),
             c.chosen.as_str(),
-            errors.join(", "),
+            c.errors_by_name(),
             c.seconds
         ));
     }
