@@ -131,3 +131,56 @@ fn sweep_rows_summarize_their_seeds_at_each_budget() {
         );
     }
 }
+
+/// `--methods` and `--no-still` narrow the sweep as they narrow `table`: only the named
+/// methods, only the frame accounting. Seen failing before the sweep honoured them (it
+/// ran all five methods and both accountings whatever was asked).
+#[test]
+fn sweep_renders_only_the_methods_and_accounting_asked_for() {
+    let out = temp_dir("narrow");
+    let o = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+        .current_dir(common::root())
+        .args([
+            "sweep",
+            "--scenes",
+            "cube",
+            "--res",
+            "32",
+            "--budgets",
+            "0.1",
+        ])
+        .args(["--figure-reference-dir", "reference/table_small"])
+        .args(["--frames", "3", "--methods", "volpath,volpath_filtered"])
+        .args([
+            "--no-still",
+            "--seeds",
+            "1",
+            "-t",
+            "2",
+            "--no-mitsuba",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .expect("mediareg runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let data: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
+    let seed_rows: Vec<(f64, Row)> =
+        serde_json::from_value(data["seed_rows"].clone()).expect("seed rows");
+    let mut seen: Vec<(Method, Accounting)> = seed_rows
+        .iter()
+        .map(|(_, r)| (r.method, r.accounting))
+        .collect();
+    seen.sort_by_key(|(m, a)| (m.as_str(), a.as_str()));
+    seen.dedup();
+    assert_eq!(
+        seen,
+        [
+            (Method::Volpath, Accounting::Frame),
+            (Method::VolpathFiltered, Accounting::Frame)
+        ],
+        "{seen:?}"
+    );
+    assert!(!out.join("sweep_cube_still.png").exists());
+}

@@ -74,8 +74,8 @@ pub struct SweepData {
     pub seconds: f64,
 }
 
-/// The methods the sweep renders: Table 1's (the spatial variant, the fixed factors
-/// and Mitsuba 3 are the figures' business).
+/// The methods the sweep never renders (the spatial variant, the fixed factors and
+/// Mitsuba 3 are the figures' business); `--methods` and `--no-still` narrow it further.
 const SKIP: [Method; 3] = [
     Method::RegularizedSpatial,
     Method::RegularizedDifference,
@@ -116,10 +116,9 @@ pub fn run_sweep(opts: &SweepOptions, threads: Option<usize>) -> Result<PathBuf>
                     budget: Budget::Seconds(budget),
                     out: images.clone(),
                     mitsuba: None,
-                    skip: SKIP.to_vec(),
+                    skip: SKIP.iter().chain(&opts.base.skip).copied().collect(),
                     seed: seed_of(opts.base.seed, i),
                     seeds: 1,
-                    still: true,
                     write_png: false,
                     ..opts.base.clone()
                 };
