@@ -25,35 +25,29 @@ fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
 
-#[test]
-fn sweep_rows_summarize_their_seeds_at_each_budget() {
-    let out = temp_dir("rows");
+/// `mediareg sweep` of the 32×32 cube (3 frames, no Mitsuba 3) with `args` besides, into
+/// a fresh folder: the folder, sweep.json, and its seed rows.
+fn sweep_cube(name: &str, args: &[&str]) -> (PathBuf, Value, Vec<(f64, Row)>) {
+    let out = temp_dir(name);
     let o = Command::new(env!("CARGO_BIN_EXE_mediareg"))
         .current_dir(common::root())
-        .args([
-            "sweep",
-            "--scenes",
-            "cube",
-            "--res",
-            "32",
-            "--budgets",
-            "0.1,0.2",
-        ])
-        .args([
-            "--figure-reference-dir",
-            "reference/table_small",
-            "--frames",
-            "3",
-        ])
-        .args(["--seeds", "2", "-t", "2", "--no-mitsuba", "--out"])
+        .args(["sweep", "--scenes", "cube", "--res", "32", "--frames", "3"])
+        .args(["--figure-reference-dir", "reference/table_small"])
+        .args(args)
+        .args(["-t", "2", "--no-mitsuba", "--out"])
         .arg(&out)
         .output()
         .expect("mediareg runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let data: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
-    let seed_rows: Vec<(f64, Row)> =
-        serde_json::from_value(data["seed_rows"].clone()).expect("seed rows");
+    let seed_rows = serde_json::from_value(data["seed_rows"].clone()).expect("seed rows");
+    (out, data, seed_rows)
+}
+
+#[test]
+fn sweep_rows_summarize_their_seeds_at_each_budget() {
+    let (out, data, seed_rows) = sweep_cube("rows", &["--budgets", "0.1,0.2", "--seeds", "2"]);
     let rows = data["rows"].as_array().expect("rows");
     let oidn = mediareg::denoise::oidn::load().is_ok();
     for budget in [0.1, 0.2] {
@@ -137,37 +131,18 @@ fn sweep_rows_summarize_their_seeds_at_each_budget() {
 /// ran all five methods and both accountings whatever was asked).
 #[test]
 fn sweep_renders_only_the_methods_and_accounting_asked_for() {
-    let out = temp_dir("narrow");
-    let o = Command::new(env!("CARGO_BIN_EXE_mediareg"))
-        .current_dir(common::root())
-        .args([
-            "sweep",
-            "--scenes",
-            "cube",
-            "--res",
-            "32",
+    let (out, _, seed_rows) = sweep_cube(
+        "narrow",
+        &[
             "--budgets",
             "0.1",
-        ])
-        .args(["--figure-reference-dir", "reference/table_small"])
-        .args(["--frames", "3", "--methods", "volpath,volpath_filtered"])
-        .args([
-            "--no-still",
             "--seeds",
             "1",
-            "-t",
-            "2",
-            "--no-mitsuba",
-            "--out",
-        ])
-        .arg(&out)
-        .output()
-        .expect("mediareg runs");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let data: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("sweep.json")).unwrap()).unwrap();
-    let seed_rows: Vec<(f64, Row)> =
-        serde_json::from_value(data["seed_rows"].clone()).expect("seed rows");
+            "--no-still",
+            "--methods",
+            "volpath,volpath_filtered",
+        ],
+    );
     let mut seen: Vec<(Method, Accounting)> = seed_rows
         .iter()
         .map(|(_, r)| (r.method, r.accounting))
