@@ -2,6 +2,7 @@
 //! that runs one of them over the film (`render`).
 
 pub mod aovs;
+pub mod backward;
 pub mod denoised;
 pub mod direct;
 pub mod emitters;

@@ -53,6 +53,7 @@ use glam::{Vec3, Vec3A};
 
 use super::sample::PathSample;
 use crate::geometry::SHADOW_EPSILON;
+use crate::medium::differential::DifferentialTracking;
 use crate::medium::Medium;
 use crate::sampling::mis_weight;
 use crate::sampling::Pcg32;
@@ -96,8 +97,8 @@ struct MediumLight {
 /// Emitter sampling from the point `p` in `medium`, light leaving it against `d_in`,
 /// MIS-weighted (power heuristic) against phase sampling; None when nothing arrives.
 /// `free` is a distance `p` is known to lie from every surface (the clearance there,
-/// or 0 if none is known), for the shadow ray's roulette; `extinction` the medium whose
-/// extinction is differentiated, if any.
+/// or 0 if none is known), for the shadow ray's roulette; `diff` what its transmittance
+/// is differentiated in.
 #[inline]
 fn medium_emitter_sample(
     scene: &Scene,
@@ -105,7 +106,7 @@ fn medium_emitter_sample(
     p: Vec3A,
     d_in: Vec3A,
     free: f32,
-    extinction: Option<u32>,
+    diff: &mut ShadowDerivative,
     rng: &mut Pcg32,
 ) -> Option<MediumLight> {
     let m: &Medium = &scene.media[medium as usize];
@@ -144,7 +145,7 @@ fn medium_emitter_sample(
     if q < 1.0 && !(q > 0.0 && rng.next_1d() < q) {
         return None;
     }
-    let mut through = shadow_transmittance(scene, ray, extinction, rng);
+    let mut through = shadow_transmittance(scene, ray, diff, rng);
     if q < 1.0 {
         through.tr /= q;
     }
@@ -226,6 +227,21 @@ pub enum Gradient {
     /// albedo's in `PathSample::second`, the extinction's and the phase asymmetry's in
     /// `PathSample::d_sigma` and `d_g`.
     Medium { medium: u32, params: MediumParams },
+    /// Reverse mode in the voxels of one grid medium (`integrator::backward`): its
+    /// flights and shadow rays are tracked by `medium::differential`, in both passes of
+    /// path replay (`sample_adjoint`), so that both take the same paths.
+    Adjoint(AdjointParams),
+}
+
+/// Which voxels of which medium a reverse-mode render differentiates, and its tracking.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdjointParams {
+    pub medium: u32,
+    /// The sigma_t grid's values (before `scale`).
+    pub sigma_t: bool,
+    /// The albedo grid's values.
+    pub albedo: bool,
+    pub tracking: DifferentialTracking,
 }
 
 /// Which parameters of one medium a render differentiates (`Gradient::Medium`).
@@ -275,6 +291,7 @@ impl Gradient {
             | Gradient::AlbedoIgnoringNeeVertex(m)
             | Gradient::Difference { medium: m, .. } => Some(m),
             Gradient::Medium { medium, params } => params.albedo.then_some(medium),
+            Gradient::Adjoint(_) => None,
         }
     }
 
@@ -307,7 +324,7 @@ impl Gradient {
     /// `PathSample::second`.
     pub fn has_second(self) -> bool {
         match self {
-            Gradient::None => false,
+            Gradient::None | Gradient::Adjoint(_) => false,
             Gradient::Medium { params, .. } => params.albedo,
             _ => true,
         }
@@ -349,7 +366,32 @@ pub fn sample(
     tmax: f32,
     rng: &mut Pcg32,
 ) -> PathSample {
-    let mut path = PathState::new(scene, (o, d, tmax), rng);
+    sample_with(scene, settings, (o, d, tmax), rng, None)
+}
+
+/// One pass of path replay backpropagation (Vicini et al. 2021) for the camera ray
+/// `ray`: the first pass (`AdjointPath::new`) gathers the path's radiance, the second
+/// (`AdjointPath::replay`, from the same random stream, so along the same path)
+/// scatters each factor's derivative times the adjoint of what the path gathers after
+/// it into the voxels (`volpath::path::adjoint`). Memory does not grow with the path.
+pub fn sample_adjoint(
+    scene: &Scene,
+    settings: &PathSettings,
+    ray: (Vec3A, Vec3A, f32),
+    rng: &mut Pcg32,
+    adjoint: &mut AdjointPath,
+) -> PathSample {
+    sample_with(scene, settings, ray, rng, Some(adjoint))
+}
+
+fn sample_with(
+    scene: &Scene,
+    settings: &PathSettings,
+    (o, d, tmax): (Vec3A, Vec3A, f32),
+    rng: &mut Pcg32,
+    adjoint: Option<&mut AdjointPath>,
+) -> PathSample {
+    let mut path = PathState::new(scene, (o, d, tmax), rng, adjoint);
     loop {
         // ---- Termination: zero weight, depth, Russian roulette ----
         if !path.survives(scene, settings, rng) {
@@ -388,5 +430,6 @@ mod shadow;
 #[cfg(test)]
 mod tests;
 
+pub use path::{AdjointPath, GridGradients};
 use path::{Flight, PathState};
-use shadow::{shadow_transmittance, ShadowRay};
+use shadow::{shadow_transmittance, ShadowDerivative, ShadowRay};

@@ -249,6 +249,55 @@ impl Volume {
             }
         }
     }
+
+    /// The adjoint of [`Volume::eval`]: adds `w_c` times each stored value's weight in
+    /// the lookup at `p` to `grad` (laid out as the grid's data), so that
+    /// Σ grad · data changes as Σ_c w_c eval(p)_c does. A 1-channel grid's value is
+    /// every channel's: it takes the sum of `w`. Nothing for a constant.
+    #[inline]
+    pub fn scatter(&self, p: Vec3A, w: Vec3, grad: &mut [f32]) {
+        let Source::Grid { grid, filter, wrap } = &self.source else {
+            return;
+        };
+        let q = Vec3::from(self.to_local.transform_point3a(p));
+        let mut add = |i: usize, k: f32| {
+            if grid.channels == 1 {
+                grad[i] += (w.x + w.y + w.z) * k;
+            } else {
+                for c in 0..3 {
+                    grad[3 * i + c] += w[c] * k;
+                }
+            }
+        };
+        let g = grid;
+        let n = [g.res[0] as i32, g.res[1] as i32, g.res[2] as i32];
+        let res = Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32);
+        let (sy, sz) = (g.res[0], g.res[0] * g.res[1]);
+        match filter {
+            Filter::Nearest => {
+                let x = (q * res).floor();
+                let i = |k: usize, v: f32| wrap.index(v as i32, n[k]);
+                add(i(0, x.x) + i(1, x.y) * sy + i(2, x.z) * sz, 1.0);
+            }
+            Filter::Trilinear => {
+                let x = q * res - 0.5;
+                let f = x.floor();
+                let w1 = x - f;
+                let w0 = Vec3::ONE - w1;
+                let i0 = [f.x as i32, f.y as i32, f.z as i32];
+                for (c, wz) in [w0.z, w1.z].into_iter().enumerate() {
+                    let z = wrap.index(i0[2] + c as i32, n[2]) * sz;
+                    for (b, wy) in [w0.y, w1.y].into_iter().enumerate() {
+                        let y = wrap.index(i0[1] + b as i32, n[1]) * sy;
+                        for (a, wx) in [w0.x, w1.x].into_iter().enumerate() {
+                            let xx = wrap.index(i0[0] + a as i32, n[0]);
+                            add(z + y + xx, wx * wy * wz);
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 #[inline]
@@ -323,6 +372,16 @@ fn lookup(g: &GridData, filter: Filter, wrap: Wrap, q: Vec3) -> Vec3 {
 /// A `.vol` file's bytes (for tests and scripts' fixtures): 1 or 3 channels, bbox
 /// [0, 1]³.
 pub fn write_vol(res: [usize; 3], channels: usize, data: &[f32]) -> Vec<u8> {
+    write_vol_in(res, channels, data, [Vec3::ZERO, Vec3::ONE])
+}
+
+/// The `.vol` bytes of `data` laid out as `grid`'s (its resolution, channels and the
+/// bounding box its file had): what Mitsuba 3 reads as a volume of the same shape.
+pub fn write_vol_like(grid: &GridData, data: &[f32]) -> Vec<u8> {
+    write_vol_in(grid.res, grid.channels, data, grid.file_bbox)
+}
+
+fn write_vol_in(res: [usize; 3], channels: usize, data: &[f32], bbox: [Vec3; 2]) -> Vec<u8> {
     let mut out = b"VOL".to_vec();
     out.push(3);
     out.extend_from_slice(&1i32.to_le_bytes());
@@ -330,7 +389,7 @@ pub fn write_vol(res: [usize; 3], channels: usize, data: &[f32]) -> Vec<u8> {
         out.extend_from_slice(&(r as i32).to_le_bytes());
     }
     out.extend_from_slice(&(channels as i32).to_le_bytes());
-    for v in [0.0f32, 0.0, 0.0, 1.0, 1.0, 1.0] {
+    for v in bbox[0].to_array().into_iter().chain(bbox[1].to_array()) {
         out.extend_from_slice(&v.to_le_bytes());
     }
     for v in data {
@@ -386,5 +445,42 @@ mod tests {
             Err(VolError::BadValue { index: 0, .. })
         ));
         assert!(matches!(parse_vol(b"VOX\x03"), Err(VolError::NotVol)));
+    }
+
+    /// scatter is the adjoint of eval: for random points and weights,
+    /// Σ grad · data = Σ_c w_c eval(p)_c, for 1- and 3-channel grids, trilinear and
+    /// nearest, inside and outside the cube (clamped and repeated).
+    #[test]
+    fn scatter_is_the_adjoint_of_eval() {
+        let mut rng = crate::sampling::Pcg32::new(3, 4);
+        for (channels, filter, wrap) in [
+            (1, Filter::Trilinear, Wrap::Clamp),
+            (3, Filter::Trilinear, Wrap::Repeat),
+            (1, Filter::Nearest, Wrap::Mirror),
+        ] {
+            let res = [3, 4, 2];
+            let data: Vec<f32> = (0..24 * channels).map(|_| rng.next_1d()).collect();
+            let g = parse_vol(&write_vol(res, channels, &data)).unwrap();
+            let v = Volume::new(
+                Source::Grid {
+                    grid: g,
+                    filter,
+                    wrap,
+                },
+                Affine3A::IDENTITY,
+            );
+            for _ in 0..50 {
+                let p = Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d()) * 1.6 - 0.3;
+                let w = Vec3::new(rng.next_1d(), rng.next_1d(), rng.next_1d()) - 0.5;
+                let mut grad = vec![0.0; data.len()];
+                v.scatter(p, w, &mut grad);
+                let lhs: f32 = grad.iter().zip(&data).map(|(a, b)| a * b).sum();
+                let rhs = w.dot(v.eval(p));
+                assert!(
+                    (lhs - rhs).abs() < 1e-5,
+                    "{channels} {filter:?}: {lhs} vs {rhs}"
+                );
+            }
+        }
     }
 }

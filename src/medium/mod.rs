@@ -9,6 +9,7 @@
 //! a whole segment of length `s`. Transmittance along a segment is `e^{−σ_t s}` per
 //! channel (Beer–Lambert).
 
+pub mod differential;
 pub mod grid;
 pub mod heterogeneous;
 pub mod lookup_bounds;

@@ -1,6 +1,7 @@
 //! The `mediareg` command line: argument parsing and reporting only, one file per
 //! command (render, regularize, merge, and the paper's table, figures and report).
 
+mod backward;
 mod common;
 mod fit;
 mod interrupt;
@@ -59,6 +60,9 @@ enum Command {
     /// Fit a medium's parameters (sigma_t, albedo, g, scale) to target images; writes
     /// OUT.json with the values, their 95% intervals and the loss per iteration.
     Fit(fit::FitArgs),
+    /// Reverse-mode gradients: the gradient of Σ A · I (A an adjoint image) in every
+    /// voxel of a grid medium's sigma_t (and albedo), written as PREFIX_sigma_t.vol.
+    Backward(backward::BackwardArgs),
     /// Merge renders of one shot made in chunks (distinct seeds) into OUT.exr, weighted
     /// by each chunk's spp, and OUT_var.exr, the variance of that mean.
     Merge(merge::MergeArgs),
@@ -120,5 +124,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Sweep(args) => paper::sweep(args),
         Command::Merge(args) => merge::run(args),
         Command::Fit(args) => fit::run(args),
+        Command::Backward(args) => backward::run(args),
     }
 }

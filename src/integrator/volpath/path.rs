@@ -22,8 +22,12 @@ use crate::medium::{
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::{Scene, SurfaceInteraction};
 
+mod adjoint;
+use adjoint::shadow_derivative;
+pub use adjoint::{AdjointPath, GridGradients};
+
 /// A path between its vertices: its weights, where its ray is, what it has gathered.
-pub(super) struct PathState {
+pub(super) struct PathState<'a> {
     /// β = f / p_hero, rescaled with r after every free flight so that mean(r) = 1: β is
     /// then the path's weight (the module comment of `volpath`).
     beta: Vec3,
@@ -59,6 +63,8 @@ pub(super) struct PathState {
     /// Mitsuba's `valid_ray`, the film's alpha: a visible environment, a scattering in a
     /// medium, or a surface whose BSDF sample is not a null one.
     valid: bool,
+    /// Reverse mode's state of this path (`adjoint`), in either pass.
+    adjoint: Option<&'a mut AdjointPath>,
 }
 
 /// What a free flight found.
@@ -89,9 +95,14 @@ impl Flight {
     }
 }
 
-impl PathState {
+impl<'a> PathState<'a> {
     /// The camera ray `(o, d, tmax)`, its hero channel drawn first.
-    pub(super) fn new(scene: &Scene, (o, d, tmax): (Vec3A, Vec3A, f32), rng: &mut Pcg32) -> Self {
+    pub(super) fn new(
+        scene: &Scene,
+        (o, d, tmax): (Vec3A, Vec3A, f32),
+        rng: &mut Pcg32,
+        adjoint: Option<&'a mut AdjointPath>,
+    ) -> Self {
         let s = &scene.integrator;
         PathState {
             beta: Vec3::ONE,
@@ -116,6 +127,7 @@ impl PathState {
             d_g_result: Vec3::ZERO,
             seen_emission: Vec3::ZERO,
             valid: !s.hide_emitters && scene.environment.is_some(),
+            adjoint,
         }
     }
 
@@ -199,7 +211,12 @@ impl PathState {
         // up (for its emitter sample): the same point, the same value.
         let known_clearance = self.origin_clearance.take();
         match m.heterogeneous.as_deref() {
-            Some(het) => self.delta_tracking(scene, settings, mi, het, rng),
+            Some(het) => match settings.gradient {
+                Gradient::Adjoint(a) if a.medium == mi => {
+                    self.differential_tracking(scene, settings, a, het, rng)
+                }
+                _ => self.delta_tracking(scene, settings, mi, het, rng),
+            },
             None => self.homogeneous_flight(scene, settings, mi, known_clearance, rng),
         }
     }
@@ -469,14 +486,16 @@ impl PathState {
         } else {
             0.0
         };
-        let extinction = settings.gradient.extinction_medium();
-        let light = medium_emitter_sample(scene, mi, p, self.ray_d, free, extinction, rng);
+        let d_in = self.ray_d;
+        let mut diff = shadow_derivative(settings, &mut self.adjoint);
+        let light = medium_emitter_sample(scene, mi, p, d_in, free, &mut diff, rng);
         if let Some(MediumLight {
             value: x,
             d_log_tr,
             d,
         }) = light
         {
+            self.scatter_shadow(scene, settings, self.beta * x);
             self.result += self.beta * x;
             self.d_result += x * match settings.gradient {
                 Gradient::AlbedoIgnoringNeeVertex(_) => flight.d_beta_before,
@@ -584,12 +603,12 @@ impl PathState {
         {
             let u = rng.next_2d();
             let medium = self.medium;
-            let extinction = settings.gradient.extinction_medium();
+            let mut diff = shadow_derivative(settings, &mut self.adjoint);
             let mut d_log_tr = Vec3::ZERO;
             let transmittance = |o, d, dist| {
                 let medium = medium_after(info, h.n, d, medium);
                 let ray = ShadowRay { o, d, dist, medium };
-                let through = shadow_transmittance(scene, ray, extinction, rng);
+                let through = shadow_transmittance(scene, ray, &mut diff, rng);
                 d_log_tr = through.d_log;
                 through.tr
             };
@@ -599,6 +618,7 @@ impl PathState {
                 } else {
                     mis_weight(ls.emitter_pdf, ls.bsdf_pdf)
                 };
+                self.scatter_shadow(scene, settings, self.beta * ls.value * w);
                 self.result += self.beta * ls.value * w;
                 self.d_result += self.d_beta * ls.value * w;
                 if settings.gradient.without_shadow_term() {

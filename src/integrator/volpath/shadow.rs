@@ -4,7 +4,7 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::{medium_after, medium_beyond};
+use super::{medium_after, medium_beyond, AdjointParams};
 use crate::geometry::accel::{Crossing, CrossingList, Crossings};
 use crate::geometry::offset_point;
 use crate::medium::transmittance;
@@ -54,10 +54,33 @@ impl Transmitted {
     }
 }
 
+/// What a shadow ray's transmittance is differentiated in: forward mode's extinction of
+/// one medium (`extinction`), or reverse mode's voxels (`adjoint`: that medium is tracked
+/// by `medium::differential`, and where `record` is given each tentative collision in
+/// it is pushed there as (point, −scale / σ_n), the factor of ∂ ln T in the voxels
+/// about that point, for the caller to scatter once the ray's contribution is known).
+pub(super) struct ShadowDerivative<'r> {
+    pub extinction: Option<u32>,
+    pub adjoint: Option<AdjointParams>,
+    pub record: Option<&'r mut Vec<(Vec3A, f32)>>,
+}
+
+#[cfg(test)]
+impl ShadowDerivative<'_> {
+    /// Forward mode in `extinction`'s extinction (or nothing).
+    pub fn forward(extinction: Option<u32>) -> ShadowDerivative<'static> {
+        ShadowDerivative {
+            extinction,
+            adjoint: None,
+            record: None,
+        }
+    }
+}
+
 /// Transmittance along `ray`: the product of `e^{−σ_t s}` over the segments, through
 /// `null` surfaces (switching medium by the side crossed) and `thindielectric` ones
-/// (times their transmission); 0 if any other surface blocks the way. `extinction`:
-/// the medium whose extinction is differentiated, if any.
+/// (times their transmission); 0 if any other surface blocks the way; differentiated as
+/// `diff` says.
 ///
 /// Where the accelerator can, it finds every crossing in one traversal
 /// ([`Scene::crossings`]); else one ray is
@@ -65,14 +88,14 @@ impl Transmitted {
 pub(super) fn shadow_transmittance(
     scene: &Scene,
     ray: ShadowRay,
-    extinction: Option<u32>,
+    diff: &mut ShadowDerivative,
     rng: &mut Pcg32,
 ) -> Transmitted {
     let mut hits = CrossingList::new();
     match scene.crossings(ray.o, ray.d, ray.dist, &mut hits) {
         Crossings::Blocked => Transmitted::BLOCKED,
-        Crossings::Found => through_crossings(scene, ray, extinction, &mut hits, rng),
-        Crossings::Unsupported => shadow_transmittance_stepwise(scene, ray, extinction, rng),
+        Crossings::Found => through_crossings(scene, ray, diff, &mut hits, rng),
+        Crossings::Unsupported => shadow_transmittance_stepwise(scene, ray, diff, rng),
     }
 }
 
@@ -84,7 +107,7 @@ pub(super) fn shadow_transmittance(
 pub(super) fn through_crossings(
     scene: &Scene,
     ray: ShadowRay,
-    extinction: Option<u32>,
+    diff: &mut ShadowDerivative,
     hits: &mut [Crossing],
     rng: &mut Pcg32,
 ) -> Transmitted {
@@ -100,14 +123,14 @@ pub(super) fn through_crossings(
     for h in hits.iter() {
         if let Some(m) = medium {
             let seg = (o + d * start, d, h.t - start);
-            tr = tr.then(segment_transmittance(scene, m, seg, extinction, rng));
+            tr = tr.then(segment_transmittance(scene, m, seg, diff, rng));
         }
         start = h.t;
         medium = medium_beyond(&scene.shapes[h.shape as usize], h.along_normal, medium);
     }
     if let Some(m) = medium {
         let seg = (o + d * start, d, dist - start);
-        tr = tr.then(segment_transmittance(scene, m, seg, extinction, rng));
+        tr = tr.then(segment_transmittance(scene, m, seg, diff, rng));
     }
     tr
 }
@@ -119,11 +142,11 @@ pub(super) fn segment_transmittance(
     scene: &Scene,
     m: u32,
     (o, d, len): (Vec3A, Vec3A, f32),
-    extinction: Option<u32>,
+    diff: &mut ShadowDerivative,
     rng: &mut Pcg32,
 ) -> Transmitted {
     let med = &scene.media[m as usize];
-    let chosen = extinction == Some(m);
+    let chosen = diff.extinction == Some(m);
     match &med.heterogeneous {
         None => Transmitted {
             tr: transmittance(med.sigma_t, len),
@@ -133,12 +156,26 @@ pub(super) fn segment_transmittance(
                 Vec3::ZERO
             },
         },
-        Some(h) => Transmitted {
-            tr: h.transmittance(o, d, len, rng),
-            d_log: if chosen {
-                -h.depth_estimate(o, d, len)
-            } else {
-                Vec3::ZERO
+        Some(h) => match diff.adjoint {
+            Some(a) if a.medium == m => {
+                let record = &mut diff.record;
+                let tr = a.tracking.transmittance(h, o, d, len, rng, |p, sigma_n| {
+                    if let Some(r) = record.as_deref_mut() {
+                        r.push((p, -h.scale / sigma_n));
+                    }
+                });
+                Transmitted {
+                    tr,
+                    d_log: Vec3::ZERO,
+                }
+            }
+            _ => Transmitted {
+                tr: h.transmittance(o, d, len, rng),
+                d_log: if chosen {
+                    -h.depth_estimate(o, d, len)
+                } else {
+                    Vec3::ZERO
+                },
             },
         },
     }
@@ -148,7 +185,7 @@ pub(super) fn segment_transmittance(
 pub(super) fn shadow_transmittance_stepwise(
     scene: &Scene,
     ray: ShadowRay,
-    extinction: Option<u32>,
+    diff: &mut ShadowDerivative,
     rng: &mut Pcg32,
 ) -> Transmitted {
     let ShadowRay {
@@ -165,13 +202,7 @@ pub(super) fn shadow_transmittance_stepwise(
         let hit = scene.intersect(o, d, dist);
         let seg = hit.map_or(dist, |h| h.t);
         if let Some(m) = medium {
-            tr = tr.then(segment_transmittance(
-                scene,
-                m,
-                (o, d, seg),
-                extinction,
-                rng,
-            ));
+            tr = tr.then(segment_transmittance(scene, m, (o, d, seg), diff, rng));
         }
         let Some(h) = hit else { return tr };
         let info = &scene.shapes[h.shape as usize];

@@ -194,7 +194,13 @@ fn crossings_in_one_traversal_give_the_exact_transmittance() {
                 Crossings::Unsupported => panic!("unsupported without thin dielectrics"),
             }
             let ray = ShadowRay { o, d, dist, medium };
-            let tr = shadow_transmittance(&scene, ray, None, &mut Pcg32::new(1, 1)).tr;
+            let tr = shadow_transmittance(
+                &scene,
+                ray,
+                &mut ShadowDerivative::forward(None),
+                &mut Pcg32::new(1, 1),
+            )
+            .tr;
             let want = exact(o, d, dist, medium, cubes);
             assert!(
                 (tr - want).abs().max_element() <= 1e-4 * want.max_element() + 1e-6,
@@ -237,7 +243,12 @@ fn a_crossing_found_twice_on_a_shared_edge_counts_once() {
                     dist: 4.0,
                     medium,
                 };
-                let through = shadow_transmittance(&scene, ray, Some(0), &mut Pcg32::new(1, 1));
+                let through = shadow_transmittance(
+                    &scene,
+                    ray,
+                    &mut ShadowDerivative::forward(Some(0)),
+                    &mut Pcg32::new(1, 1),
+                );
                 let tr = through.tr;
                 // ∂ ln T / ∂σ_t: minus the length in the medium.
                 assert!(
