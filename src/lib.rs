@@ -7,7 +7,7 @@
 //!
 //! Modules import only from those below them, lowest first: `error`, `simd`, `sampling`,
 //! `image`, `denoise`, `xml`, `geometry`, `texture`, `medium`, `bsdf`, `emitter`, `scene`, `load`,
-//! `integrator`, `regularize`, `report` (`tests/layering.rs` holds the list and checks
+//! `integrator`, `fit`, `optimize`, `regularize`, `report` (`tests/layering.rs` holds the list and checks
 //! it, with no import circle inside a module and no file over 800 lines).
 
 pub mod bsdf;
@@ -20,6 +20,7 @@ pub mod image;
 pub mod integrator;
 pub mod load;
 pub mod medium;
+pub mod optimize;
 pub mod regularize;
 pub mod report;
 pub mod sampling;

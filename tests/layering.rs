@@ -27,6 +27,7 @@ const LAYERS: &[&str] = &[
     "load",       // SceneDescription → Scene (one file per plugin kind)
     "integrator", // path, volpath, the render driver
     "fit",        // a medium's parameters from images
+    "optimize",   // a grid medium's voxels from images
     "regularize", // the paper's method
     "report",     // mediareg table
 ];

@@ -250,6 +250,51 @@ impl Volume {
         }
     }
 
+    /// The same volume (placement, filter, wrap, channels) holding `data` at resolution
+    /// `res` instead; None for a constant.
+    pub fn with_grid(&self, res: [usize; 3], data: Vec<f32>) -> Option<Volume> {
+        let Source::Grid { grid, filter, wrap } = &self.source else {
+            return None;
+        };
+        assert_eq!(data.len(), res.iter().product::<usize>() * grid.channels);
+        let grid = GridData {
+            res,
+            channels: grid.channels,
+            data,
+            file_bbox: grid.file_bbox,
+        };
+        let source = Source::Grid {
+            grid,
+            filter: *filter,
+            wrap: *wrap,
+        };
+        Some(Volume::new(source, self.to_local.inverse()))
+    }
+
+    /// The grid's values resampled at resolution `res`: each new voxel takes the value
+    /// at its centre, by `filter` (nearest: Dr.Jit's `upsample` of a tensor; trilinear:
+    /// the lookup's). None for a constant.
+    pub fn resampled(&self, res: [usize; 3], filter: Filter) -> Option<Vec<f32>> {
+        let Source::Grid { grid, wrap, .. } = &self.source else {
+            return None;
+        };
+        let mut out = Vec::with_capacity(res.iter().product::<usize>() * grid.channels);
+        for z in 0..res[2] {
+            for y in 0..res[1] {
+                for x in 0..res[0] {
+                    let q = Vec3::new(
+                        (x as f32 + 0.5) / res[0] as f32,
+                        (y as f32 + 0.5) / res[1] as f32,
+                        (z as f32 + 0.5) / res[2] as f32,
+                    );
+                    let v = lookup(grid, filter, *wrap, q);
+                    out.extend_from_slice(&v.to_array()[..grid.channels]);
+                }
+            }
+        }
+        Some(out)
+    }
+
     /// The adjoint of [`Volume::eval`]: adds `w_c` times each stored value's weight in
     /// the lookup at `p` to `grad` (laid out as the grid's data), so that
     /// Σ grad · data changes as Σ_c w_c eval(p)_c does. A 1-channel grid's value is

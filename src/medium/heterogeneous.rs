@@ -119,6 +119,12 @@ impl HeterogeneousMedium {
         m
     }
 
+    /// The same medium with other extinction and albedo volumes (its majorants and
+    /// lookup bounds made for them, as the loader makes them).
+    pub fn with_volumes(&self, sigma_t: Volume, albedo: Volume) -> HeterogeneousMedium {
+        HeterogeneousMedium::new(sigma_t, albedo, self.scale, self.bounded)
+    }
+
     /// The medium at density `scale`: σ̄ and, for a bounded medium, the local
     /// majorants made for it (a pass over the grid: cheap beside a render), as the
     /// loader makes them (it calls `new`), so that a fit's medium is the one

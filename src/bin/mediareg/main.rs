@@ -6,6 +6,7 @@ mod common;
 mod fit;
 mod interrupt;
 mod merge;
+mod optimize;
 mod paper;
 mod regularize;
 mod render;
@@ -63,6 +64,10 @@ enum Command {
     /// Reverse-mode gradients: the gradient of Σ A · I (A an adjoint image) in every
     /// voxel of a grid medium's sigma_t (and albedo), written as PREFIX_sigma_t.vol.
     Backward(backward::BackwardArgs),
+    /// Fit a grid medium's voxels to images of the scene's sensors (Mitsuba 3's volume
+    /// tutorial): L2 loss, reverse-mode gradients, Adam, coarse to fine. Writes OUT.vol
+    /// and OUT.json (the loss and seconds per iteration).
+    Optimize(optimize::OptimizeArgs),
     /// Merge renders of one shot made in chunks (distinct seeds) into OUT.exr, weighted
     /// by each chunk's spp, and OUT_var.exr, the variance of that mean.
     Merge(merge::MergeArgs),
@@ -125,5 +130,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Merge(args) => merge::run(args),
         Command::Fit(args) => fit::run(args),
         Command::Backward(args) => backward::run(args),
+        Command::Optimize(args) => optimize::run(args),
     }
 }
