@@ -46,9 +46,12 @@ use crate::sampling::Pcg32;
 
 /// The majorant's inflation κ over the rendered one.
 const INFLATION: f32 = 1.25;
-/// σ̄_floor times the grid box's diagonal: tentative collisions per crossing of an empty box.
+/// σ̄_floor over the grid's global majorant (scale · its largest value).
+const FLOOR_OF_GLOBAL: f32 = 0.5;
+/// ρ over the global majorant.
+const MIN_REAL_OF_GLOBAL: f32 = 0.005;
+/// Where the grid is empty: σ̄_floor and ρ times the grid box's diagonal.
 const FLOOR_PER_DIAGONAL: f32 = 1.0;
-/// ρ times the diagonal: real collisions per crossing of an empty box.
 const MIN_REAL_PER_DIAGONAL: f32 = 0.1;
 
 /// The majorants and real-collision probability of differentiated tracking (the module
@@ -82,9 +85,10 @@ impl DifferentialTracking {
         } else {
             1.0
         };
+        let global = medium.majorant;
         DifferentialTracking {
-            floor: FLOOR_PER_DIAGONAL / diagonal,
-            min_real: MIN_REAL_PER_DIAGONAL / diagonal,
+            floor: (FLOOR_OF_GLOBAL * global).max(FLOOR_PER_DIAGONAL / diagonal),
+            min_real: (MIN_REAL_OF_GLOBAL * global).max(MIN_REAL_PER_DIAGONAL / diagonal),
         }
     }
 
