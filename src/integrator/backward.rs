@@ -16,7 +16,9 @@ use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use super::volpath::{self, AdjointParams, AdjointPath, Gradient, GridGradients, PathSettings};
+use super::volpath::{
+    self, AdjointDefect, AdjointParams, AdjointPath, Gradient, GridGradients, PathSettings,
+};
 use crate::image::Image;
 use crate::medium::differential::DifferentialTracking;
 use crate::medium::grid::Source;
@@ -35,6 +37,9 @@ pub struct BackwardOptions {
     /// Set to stop early: the gradient of the samples done so far is returned, scaled
     /// as if they were all (`Gradients::interrupted`).
     pub cancel: Option<Arc<AtomicBool>>,
+    /// A deliberately wrong estimator, for the power tests.
+    #[doc(hidden)]
+    pub defect: Option<AdjointDefect>,
 }
 
 /// ∂L/∂value for each stored value of the grids asked for (their data's layout).
@@ -130,6 +135,7 @@ pub fn adjoint_params(
         sigma_t: opts.sigma_t,
         albedo: opts.albedo,
         tracking: DifferentialTracking::for_medium(het),
+        defect: opts.defect,
     })
 }
 

@@ -242,6 +242,21 @@ pub struct AdjointParams {
     /// The albedo grid's values.
     pub albedo: bool,
     pub tracking: DifferentialTracking,
+    /// A deliberately wrong estimator, for the power tests.
+    #[doc(hidden)]
+    pub defect: Option<AdjointDefect>,
+}
+
+/// The terms a deliberately wrong reverse mode leaves out (the power tests').
+#[doc(hidden)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AdjointDefect {
+    /// The null collisions' terms (flights and shadow rays): the transmittance's.
+    Transmittance,
+    /// The real collisions' terms: the scattering weight's.
+    Scattering,
+    /// No ghost paths: nothing where σ_t = 0 (delta tracking's support).
+    Ghosts,
 }
 
 /// Which parameters of one medium a render differentiates (`Gradient::Medium`).

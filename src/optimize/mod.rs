@@ -212,6 +212,7 @@ pub fn optimize(
         albedo: s.albedo,
         show_progress: false,
         cancel: s.cancel.clone(),
+        defect: None,
     };
     backward::adjoint_params(scene, &bw).map_err(OptimizeError::Backward)?;
     {

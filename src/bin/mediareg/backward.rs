@@ -78,6 +78,7 @@ pub fn run(mut cmd: BackwardArgs) -> Result<()> {
         albedo,
         show_progress: std::io::stderr().is_terminal(),
         cancel: Some(Arc::clone(&INTERRUPT)),
+        defect: None,
     };
     let grads = backward::backward(&scene, &scene.shot, &adjoint, &opts)
         .map_err(|e| anyhow!("{}: {e}", cmd.args.scene.display()))?;

@@ -22,7 +22,9 @@
 use glam::{Vec3, Vec3A};
 
 use super::{Flight, PathState};
-use crate::integrator::volpath::{AdjointParams, Gradient, PathSettings, ShadowDerivative};
+use crate::integrator::volpath::{
+    AdjointDefect, AdjointParams, Gradient, PathSettings, ShadowDerivative,
+};
 use crate::medium::heterogeneous::HeterogeneousMedium;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
@@ -91,7 +93,9 @@ pub(in crate::integrator::volpath) fn shadow_derivative<'r>(
     adjoint: &'r mut Option<&mut AdjointPath>,
 ) -> ShadowDerivative<'r> {
     let params = match settings.gradient {
-        Gradient::Adjoint(a) if a.sigma_t => Some(a),
+        Gradient::Adjoint(a) if a.sigma_t && a.defect != Some(AdjointDefect::Transmittance) => {
+            Some(a)
+        }
         _ => None,
     };
     let record = match (params, adjoint.as_deref_mut()) {
@@ -158,10 +162,12 @@ impl PathState<'_> {
             .and_then(|adj| adj.after(self.result));
         let mut grads = self.adjoint.as_deref_mut().map(|adj| &mut adj.grads);
         let scale = het.scale;
+        let null_terms = a.sigma_t && a.defect != Some(AdjointDefect::Transmittance);
+        let real_terms = a.defect != Some(AdjointDefect::Scattering);
         let (real, w) =
             a.tracking
                 .sample_flight(het, self.ray_o, self.ray_d, end, rng, |p, sigma_n| {
-                    if let (Some(after), Some(g), true) = (after, grads.as_deref_mut(), a.sigma_t) {
+                    if let (Some(after), Some(g), true) = (after, grads.as_deref_mut(), null_terms) {
                         het.sigma_t
                             .scatter(p, after * (-scale / sigma_n), &mut g.sigma_t);
                     }
@@ -177,7 +183,7 @@ impl PathState<'_> {
         flight.t = c.t;
         let alpha = settings.albedo[mi as usize] * c.albedo;
         if c.sigma_t > 0.0 {
-            if let (Some(after), Some(g)) = (after, grads) {
+            if let (Some(after), Some(g), true) = (after, grads, real_terms) {
                 if a.sigma_t {
                     het.sigma_t
                         .scatter(c.p, after * (scale / c.sigma_t), &mut g.sigma_t);
@@ -195,7 +201,7 @@ impl PathState<'_> {
         }
         // σ_t = 0: the path goes on as a ghost carrying ∂σ_s alone.
         match self.adjoint.as_deref_mut() {
-            Some(adj) if a.sigma_t && adj.ghost_at.is_none() => {
+            Some(adj) if a.sigma_t && adj.ghost_at.is_none() && a.defect != Some(AdjointDefect::Ghosts) => {
                 if adj.replay {
                     let c_ghost = adj.weight * adj.ghost_total * scale;
                     het.sigma_t.scatter(c.p, c_ghost, &mut adj.grads.sigma_t);
