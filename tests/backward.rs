@@ -103,7 +103,10 @@ fn loss(s: &Scene) -> f64 {
 
 /// Per seed: Σ data · ∂L/∂data of sigma_t / scale and of the albedo, by reverse mode.
 fn adjoint_identities(seeds: u64, spp: u32, defect: Option<AdjointDefect>) -> [Vec<f64>; 2] {
-    let (sig, alb) = (grid("grid_adjoint_sigma_t.vol"), grid("grid_adjoint_albedo.vol"));
+    let (sig, alb) = (
+        grid("grid_adjoint_sigma_t.vol"),
+        grid("grid_adjoint_albedo.vol"),
+    );
     let mut out = [Vec::new(), Vec::new()];
     for seed in 0..seeds {
         let s = scene(spp, seed, None);
@@ -128,7 +131,10 @@ fn forward_derivatives(seeds: u64, spp: u32) -> [Vec<f64>; 2] {
             ..Default::default()
         };
         let r = mediareg::integrator::render(&s, &s.shot, &opts);
-        for (k, (_, img)) in derivative_images(&s, mi, &params, &r).into_iter().enumerate() {
+        for (k, (_, img)) in derivative_images(&s, mi, &params, &r)
+            .into_iter()
+            .enumerate()
+        {
             let img = img.unwrap();
             let v = img
                 .pixels
@@ -153,14 +159,21 @@ fn adjoint_agrees_with_forward_mode() {
     for (k, name) in ["sigma_t", "albedo"].iter().enumerate() {
         let (a, f) = (with_dof(&adj[k]), with_dof(&fwd[k]));
         let (t, ok) = agree(a, f);
-        eprintln!("{name}: adjoint {:.5e} ± {:.1e}, forward {:.5e} ± {:.1e}, t {t:.2}", a.0, a.1, f.0, f.1);
+        eprintln!(
+            "{name}: adjoint {:.5e} ± {:.1e}, forward {:.5e} ± {:.1e}, t {t:.2}",
+            a.0, a.1, f.0, f.1
+        );
         assert!(ok, "{name}: adjoint {a:?} vs forward {f:?}: t = {t}");
         for (what, factor) in [("5% too large", 1.05), ("negated", -1.0)] {
             let (t, ok) = agree((a.0 * factor, a.1 * factor.abs(), a.2), f);
             assert!(!ok, "{name} {what} undetected: t = {t}");
         }
     }
-    for (defect, k) in [(AdjointDefect::Transmittance, 0), (AdjointDefect::Scattering, 0), (AdjointDefect::Scattering, 1)] {
+    for (defect, k) in [
+        (AdjointDefect::Transmittance, 0),
+        (AdjointDefect::Scattering, 0),
+        (AdjointDefect::Scattering, 1),
+    ] {
         let wrong = adjoint_identities(seeds / 2, spp, Some(defect));
         let (t, ok) = agree(with_dof(&wrong[k]), with_dof(&fwd[k]));
         assert!(!ok, "{defect:?} (quantity {k}) undetected: t = {t}");
@@ -176,15 +189,28 @@ fn hard_grids_stay_finite() {
     let n = 512;
     let cases: [(&str, Vec<f32>, f32); 3] = [
         ("empty", vec![0.0; n], 1.25),
-        ("range", (0..n).map(|i| if i % 3 == 0 { 1.0 } else { 1e-3 }).collect(), 1.25),
-        ("thick", (0..n).map(|i| 6.0 + (i % 5) as f32).collect(), 12.5),
+        (
+            "range",
+            (0..n)
+                .map(|i| if i % 3 == 0 { 1.0 } else { 1e-3 })
+                .collect(),
+            1.25,
+        ),
+        (
+            "thick",
+            (0..n).map(|i| 6.0 + (i % 5) as f32).collect(),
+            12.5,
+        ),
     ];
     for (name, data, max) in cases {
         let path = dir.join(format!("{name}.vol"));
         std::fs::write(&path, write_vol([8, 8, 8], 1, &data)).unwrap();
         let file = path.display().to_string();
         let max = max.to_string();
-        let params = [("sigma_t_file", file.as_str()), ("sigma_t_max", max.as_str())];
+        let params = [
+            ("sigma_t_file", file.as_str()),
+            ("sigma_t_max", max.as_str()),
+        ];
         let s = load_seeded(&scene_path(), &params, 16, 3);
         let g = gradients(&s, None);
         for (what, v) in [("sigma_t", &g.sigma_t), ("albedo", &g.albedo)] {
@@ -212,7 +238,12 @@ fn empty_voxels_get_their_in_scattering_gradient() {
     let files: Vec<PathBuf> = [0.0, h / 2.0, h]
         .iter()
         .map(|&step| {
-            let data: Vec<f32> = base.data.iter().zip(&v).map(|(x, v)| x + step * v).collect();
+            let data: Vec<f32> = base
+                .data
+                .iter()
+                .zip(&v)
+                .map(|(x, v)| x + step * v)
+                .collect();
             let path = dir.join(format!("step_{step}.vol"));
             std::fs::write(&path, write_vol(base.res, 1, &data)).unwrap();
             path
@@ -221,18 +252,32 @@ fn empty_voxels_get_their_in_scattering_gradient() {
     let (seeds, spp) = (16u64, 256u32);
     let mut fd = Vec::new();
     for seed in 0..seeds {
-        let l: Vec<f64> = files.iter().map(|f| loss(&scene(spp, 500 + seed, Some(f)))).collect();
+        let l: Vec<f64> = files
+            .iter()
+            .map(|f| loss(&scene(spp, 500 + seed, Some(f))))
+            .collect();
         let d = |l1: f64, step: f32| (l1 - l[0]) / step as f64;
         fd.push(2.0 * d(l[1], h / 2.0) - d(l[2], h));
     }
     let along = |defect| -> Vec<f64> {
         (0..seeds)
-            .map(|seed| dot(&v, gradients(&scene(spp, seed, None), defect).sigma_t.as_ref().unwrap()))
+            .map(|seed| {
+                dot(
+                    &v,
+                    gradients(&scene(spp, seed, None), defect)
+                        .sigma_t
+                        .as_ref()
+                        .unwrap(),
+                )
+            })
             .collect()
     };
     let (ad, fdv) = (with_dof(&along(None)), with_dof(&fd));
     let (t, ok) = agree(ad, fdv);
-    eprintln!("empty voxels: adjoint {:.5e} ± {:.1e}, FD {:.5e} ± {:.1e}, t {t:.2}", ad.0, ad.1, fdv.0, fdv.1);
+    eprintln!(
+        "empty voxels: adjoint {:.5e} ± {:.1e}, FD {:.5e} ± {:.1e}, t {t:.2}",
+        ad.0, ad.1, fdv.0, fdv.1
+    );
     assert!(ok, "adjoint {ad:?} vs FD {fdv:?}: t = {t}");
     let (t, ok) = agree(with_dof(&along(Some(AdjointDefect::Ghosts))), fdv);
     assert!(!ok, "without ghosts undetected: t = {t}");

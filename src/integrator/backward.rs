@@ -27,6 +27,9 @@ use crate::scene::film::{ImageBlock, Rfilter};
 use crate::scene::shot::Shot;
 use crate::scene::{IntegratorKind, Scene};
 
+/// Where the sample indices of the ghosts' streams start (far from the paths').
+const GHOST_STREAMS: u64 = 1 << 62;
+
 /// What a reverse-mode render differentiates and how it reports.
 #[derive(Clone, Debug, Default)]
 pub struct BackwardOptions {
@@ -224,7 +227,11 @@ pub fn backward(
                     let ray = shot.camera.sample_ray(pos);
                     let ray = (ray.o, ray.d, ray.tmax);
                     let rng0 = Pcg32::for_path(shot.seed, pixel, si, &scrambles);
-                    adj.first_pass(weight);
+                    // The ghosts' stream: the sample's, apart from its path's.
+                    adj.first_pass(
+                        weight,
+                        Pcg32::for_sample(shot.seed, pixel, GHOST_STREAMS + si as u64),
+                    );
                     let first =
                         volpath::sample_adjoint(scene, &settings, ray, &mut rng0.clone(), &mut adj);
                     if !first.radiance.is_finite() {

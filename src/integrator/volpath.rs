@@ -407,6 +407,12 @@ fn sample_with(
     adjoint: Option<&mut AdjointPath>,
 ) -> PathSample {
     let mut path = PathState::new(scene, (o, d, tmax), rng, adjoint);
+    run(&mut path, scene, settings, rng);
+    path.sample()
+}
+
+/// Mitsuba's loop from `path`'s state on, until the path ends.
+fn run(path: &mut PathState, scene: &Scene, settings: &PathSettings, rng: &mut Pcg32) {
     loop {
         // ---- Termination: zero weight, depth, Russian roulette ----
         if !path.survives(scene, settings, rng) {
@@ -432,7 +438,6 @@ fn sample_with(
             break;
         }
     }
-    path.sample()
 }
 
 #[inline]

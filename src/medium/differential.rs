@@ -17,8 +17,8 @@
 //!
 //! This is unbiased only where the sampling reaches every point at which ∂σ_t ≠ 0.
 //! Delta tracking as rendered (P_r = σ_t / σ̄, the weights α and 1, a grid's local
-//! majorants) misses three places, and Mitsuba 3's `prbvolpath`, which differentiates
-//! (1) with P_r = σ_t / σ̄ at one global majorant, shares the first two:
+//! majorants), and Mitsuba 3's `prbvolpath`, which differentiates (1) with
+//! P_r = σ_t / σ̄ at one global majorant, miss or nearly miss three places:
 //! * where σ_t = 0 no real collision happens, so the in-scattering a density added there
 //!   would bring (the ∂σ_s term) is never seen: an empty voxel's gradient is only the
 //!   transmittance's, and a fit can never grow density from zero; where σ_t is small the
@@ -26,16 +26,21 @@
 //! * where σ_t reaches σ̄ (the densest voxel, at the global majorant) σ_n → 0 and the
 //!   null term −∂σ_t/σ_n has unbounded variance;
 //! * an empty cell's local majorant is 0: no tentative collision samples its
-//!   transmittance's derivative.
+//!   transmittance's derivative, and a thin cell's few samples give each a large term
+//!   (a Poisson estimate of ∫f at rate λ has variance ∫f²/λ).
 //! Here, for the medium whose voxels are differentiated (both passes of the adjoint
-//! render, so that they take the same paths): σ̄' = max(κ σ̄_cell, σ̄_floor) with κ > 1,
-//! and P_r = max(σ_t, ρ) / σ̄' with ρ ≤ σ̄_floor / 2. Then σ_n ≥ (1 − 1/κ) σ̄', every
-//! point of the grid's box sees tentative collisions, real ones at rate ≥ ρ, and the
-//! terms of (2) are bounded by 1/ρ and κ/((κ − 1) σ̄'). Where σ_t = 0 a real collision
-//! has weight 0 but derivative α ∂σ_t/(σ̄' P_r): the integrator continues such a path as
-//! a "ghost" that carries only that one derivative (`volpath::adjoint`). σ̄_floor and ρ
-//! are set per grid from its box's diagonal, so that an empty box costs about one
-//! tentative collision per crossing and a tenth of its crossings end in a real one.
+//! render, so that they take the same paths): σ̄' = max(κ σ̄_cell, σ̄_floor) with κ > 1
+//! and σ̄_floor a fraction of the grid's global majorant, so σ_n ≥ (1 − 1/κ) σ̄' and
+//! every point of the box sees tentative collisions; the flight itself stays plain delta
+//! tracking at σ̄' (P_r = σ_t/σ̄', weights α and 1). The ∂σ_s term is split by region:
+//! where σ_t ≥ ρ it rides on the flight's real collisions (|term| ≤ 1/ρ); where σ_t < ρ,
+//! each tentative collision forks, with probability ρ_g/σ̄' drawn from a stream of its
+//! own, a ghost: a path from that point, scattered there with weight β/ρ_g, whose radiance
+//! G estimates the in-scattering, and which carries ∂σ_s · G alone (its own derivatives
+//! would be of second order). The rendered path is untouched by the ghosts, which are
+//! traced in the replay only. ρ, ρ_g ≥ ρ and σ̄_floor come from the global majorant
+//! (where the grid is empty or thin, from its box's diagonal: about one ghost per
+//! crossing of an empty box).
 
 use glam::{Vec3, Vec3A};
 
@@ -53,6 +58,8 @@ const MIN_REAL_OF_GLOBAL: f32 = 0.005;
 /// Where the grid is empty: σ̄_floor and ρ times the grid box's diagonal.
 const FLOOR_PER_DIAGONAL: f32 = 1.0;
 const MIN_REAL_PER_DIAGONAL: f32 = 0.1;
+/// The ghosts' fork rate where σ_t < ρ, times the diagonal (at least ρ).
+const GHOSTS_PER_DIAGONAL: f32 = 1.0;
 
 /// The majorants and real-collision probability of differentiated tracking (the module
 /// comment): σ̄' = max(κ σ̄, `floor`), P_r = max(σ_t, `min_real`) / σ̄'.
@@ -60,19 +67,19 @@ const MIN_REAL_PER_DIAGONAL: f32 = 0.1;
 pub struct DifferentialTracking {
     pub floor: f32,
     pub min_real: f32,
+    /// The rate at which ghosts fork where σ_t < `min_real`.
+    pub ghost_rate: f32,
 }
 
-/// A real collision of differentiated delta tracking.
+/// A tentative collision of differentiated delta tracking.
 #[derive(Clone, Copy, Debug)]
-pub struct RealCollision {
+pub struct Tentative {
     pub t: f32,
     pub p: Vec3A,
     /// σ_t there (with `scale`; grey).
     pub sigma_t: f32,
-    /// σ̄' P_r: the weight (1) is α σ_t / `rate`.
-    pub rate: f32,
-    /// The albedo volume's value there.
-    pub albedo: Vec3,
+    /// σ̄' there.
+    pub majorant: f32,
 }
 
 impl DifferentialTracking {
@@ -89,6 +96,7 @@ impl DifferentialTracking {
         DifferentialTracking {
             floor: (FLOOR_OF_GLOBAL * global).max(FLOOR_PER_DIAGONAL / diagonal),
             min_real: (MIN_REAL_OF_GLOBAL * global).max(MIN_REAL_PER_DIAGONAL / diagonal),
+            ghost_rate: (MIN_REAL_OF_GLOBAL * global).max(GHOSTS_PER_DIAGONAL / diagonal),
         }
     }
 
@@ -124,9 +132,9 @@ impl DifferentialTracking {
         })
     }
 
-    /// Delta tracking with the weights (1) from `o` along unit `d` up to `tmax`
-    /// (grey σ_t): the real collision, if any, and the product of the null collisions'
-    /// weights; `null(p, σ_n)` is told of every null collision, for the derivatives (2).
+    /// Delta tracking at the majorants above from `o` along unit `d` up to `tmax` (grey
+    /// σ_t; P_r = σ_t / σ̄', so every weight is 1 and α): `collide(c, real)` is told of
+    /// every tentative collision, real or null, and the real one, if any, is returned.
     pub fn sample_flight(
         &self,
         medium: &HeterogeneousMedium,
@@ -134,28 +142,29 @@ impl DifferentialTracking {
         d: Vec3A,
         tmax: f32,
         rng: &mut Pcg32,
-        mut null: impl FnMut(Vec3A, f32),
-    ) -> (Option<RealCollision>, f32) {
-        let mut w = 1.0f32;
-        let real = sample_t_maj(self.segments(medium, o, d, tmax), rng, |t, major, rng| {
+        mut collide: impl FnMut(Tentative, bool),
+    ) -> Option<Tentative> {
+        sample_t_maj(self.segments(medium, o, d, tmax), rng, |t, major, rng| {
             let p = o + d * t;
             let sigma_t = medium.sigma_t_at(p).x;
-            let rate = sigma_t.max(self.min_real).min(major);
-            if rng.next_1d() * major < rate {
-                return Some(RealCollision {
-                    t,
-                    p,
-                    sigma_t,
-                    rate,
-                    albedo: medium.albedo.eval(p),
-                });
-            }
-            let sigma_n = major - sigma_t;
-            w *= sigma_n / (major - rate);
-            null(p, sigma_n);
-            None
-        });
-        (real, w)
+            let c = Tentative {
+                t,
+                p,
+                sigma_t,
+                majorant: major,
+            };
+            let real = rng.next_1d() * major < sigma_t;
+            collide(c, real);
+            real.then_some(c)
+        })
+    }
+
+    /// Whether a ghost forks at tentative collision `c` (where σ_t < ρ), with draw
+    /// `u`, and the rate its weight is divided by (its forks' rate per unit length).
+    #[inline]
+    pub fn ghost_forks(&self, c: &Tentative, u: f32) -> Option<f32> {
+        let rate = self.ghost_rate.min(c.majorant);
+        (c.sigma_t < self.min_real && u * c.majorant < rate).then_some(rate)
     }
 
     /// Ratio tracking at the majorants above: an unbiased estimate of the transmittance
@@ -262,13 +271,11 @@ mod tests {
             for _ in 0..n {
                 let tr = dt.transmittance(&m, o, d, 3.0, &mut rng, |_, s| assert!(s > 0.0));
                 a.push(tr.x as f64);
-                let (hit, w) = dt.sample_flight(&m, o, d, 3.0, &mut rng, |_, s| assert!(s > 0.0));
-                assert!(w.is_finite() && w > 0.0);
-                // The real collision's weight (1) without α: σ_t / rate; the distance's
-                // expectation is weighted by it.
-                let real_w = hit.map_or(0.0, |h| h.sigma_t / h.rate) as f64 * w as f64;
-                b.push(if hit.is_none() { w as f64 } else { 0.0 });
-                c.push(hit.map_or(0.0, |h| h.t as f64) * real_w);
+                let hit = dt.sample_flight(&m, o, d, 3.0, &mut rng, |c, _| {
+                    assert!(c.majorant - c.sigma_t >= 0.2 * c.majorant * 0.999)
+                });
+                b.push(if hit.is_none() { 1.0 } else { 0.0 });
+                c.push(hit.map_or(0.0, |h| h.t as f64));
             }
             let ours = [stats(&a), stats(&b), stats(&c)];
             let want = plain(&m, &mut rng);

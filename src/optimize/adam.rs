@@ -38,7 +38,11 @@ impl Adam {
 
     /// One step on `x` down the gradient `g`, then each value clamped into [lo, hi].
     pub fn step(&mut self, x: &mut [f32], g: &[f32], (lo, hi): (f32, f32)) {
-        assert_eq!(x.len(), self.m.len(), "Adam's state and the parameter differ in size");
+        assert_eq!(
+            x.len(),
+            self.m.len(),
+            "Adam's state and the parameter differ in size"
+        );
         self.t += 1;
         let t = self.t as i32;
         // lr_t = lr √(1 − β₂ᵗ) / (1 − β₁ᵗ) (the algorithm's efficient form, Mitsuba's too).
@@ -62,7 +66,8 @@ mod tests {
         let c = [0.3f32, -0.2, 0.7];
         let mut x = vec![0.0f32; 3];
         let mut adam = Adam::new(0.01, 3);
-        let grad = |x: &[f32]| -> Vec<f32> { x.iter().zip(&c).map(|(x, c)| 2.0 * (x - c)).collect() };
+        let grad =
+            |x: &[f32]| -> Vec<f32> { x.iter().zip(&c).map(|(x, c)| 2.0 * (x - c)).collect() };
         adam.step(&mut x, &grad(&x), (-1.0, 1.0));
         for (x, c) in x.iter().zip(&c) {
             assert!((x - 0.01 * c.signum()).abs() < 1e-6, "{x}");
@@ -71,7 +76,10 @@ mod tests {
             let g = grad(&x);
             adam.step(&mut x, &g, (-1.0, 0.5));
         }
-        assert!((x[0] - 0.3).abs() < 1e-3 && (x[1] + 0.2).abs() < 1e-3, "{x:?}");
+        assert!(
+            (x[0] - 0.3).abs() < 1e-3 && (x[1] + 0.2).abs() < 1e-3,
+            "{x:?}"
+        );
         assert_eq!(x[2], 0.5, "clamped");
     }
 }

@@ -134,10 +134,15 @@ fn set_grids(scene: &mut Scene, mi: u32, grids: &Grids) {
         return;
     };
     let with = |v: &Volume, data: &Option<Vec<f32>>| match data {
-        Some(d) => v.with_grid(grids.res, d.clone()).unwrap_or_else(|| v.clone()),
+        Some(d) => v
+            .with_grid(grids.res, d.clone())
+            .unwrap_or_else(|| v.clone()),
         None => v.clone(),
     };
-    let new = het.with_volumes(with(&het.sigma_t, &grids.sigma_t), with(&het.albedo, &grids.albedo));
+    let new = het.with_volumes(
+        with(&het.sigma_t, &grids.sigma_t),
+        with(&het.albedo, &grids.albedo),
+    );
     m.sigma_t = glam::Vec3::splat(new.majorant);
     m.heterogeneous = Some(Box::new(new));
 }
@@ -148,7 +153,9 @@ fn grids_at(scene: &Scene, s: &OptimizeSettings, res: Option<[usize; 3]>) -> Gri
         .heterogeneous
         .as_deref()
         .expect("checked by backward::adjoint_params");
-    let (res0, _) = grid_of(&het.sigma_t).or(grid_of(&het.albedo)).expect("a grid");
+    let (res0, _) = grid_of(&het.sigma_t)
+        .or(grid_of(&het.albedo))
+        .expect("a grid");
     let res = res.unwrap_or(res0);
     let take = |on: bool, v: &Volume| -> Option<Vec<f32>> {
         let (r, data) = grid_of(v).filter(|_| on)?;

@@ -119,7 +119,11 @@ fn parse_stage(s: &str) -> Result<Stage> {
     if spp == 0 {
         bail!("--stage {s}: spp must be at least 1");
     }
-    Ok(Stage { iterations, res, spp })
+    Ok(Stage {
+        iterations,
+        res,
+        spp,
+    })
 }
 
 /// The target's image path and its sensor (the n-th target's by default).
@@ -138,7 +142,10 @@ fn parse_target(spec: &str, n: usize) -> Result<(PathBuf, usize)> {
 
 /// OUT with `_suffix` before its extension.
 fn beside(out: &Path, suffix: &str, ext: &str) -> PathBuf {
-    PathBuf::from(format!("{}{suffix}.{ext}", out.with_extension("").display()))
+    PathBuf::from(format!(
+        "{}{suffix}.{ext}",
+        out.with_extension("").display()
+    ))
 }
 
 fn write_grids(scene: &Scene, medium: u32, out: &Path, grids: &Grids) -> Result<Vec<String>> {
@@ -148,13 +155,19 @@ fn write_grids(scene: &Scene, medium: u32, out: &Path, grids: &Grids) -> Result<
         .ok_or_else(|| anyhow!("the medium is not heterogeneous"))?;
     let mut written = Vec::new();
     if let Some(v) = &grids.sigma_t {
-        let volume = het.sigma_t.with_grid(grids.res, v.clone()).unwrap_or_else(|| het.sigma_t.clone());
+        let volume = het
+            .sigma_t
+            .with_grid(grids.res, v.clone())
+            .unwrap_or_else(|| het.sigma_t.clone());
         write_grid(out, &volume, v)?;
         written.push(out.display().to_string());
     }
     if let Some(v) = &grids.albedo {
         let path = beside(out, "_albedo", "vol");
-        let volume = het.albedo.with_grid(grids.res, v.clone()).unwrap_or_else(|| het.albedo.clone());
+        let volume = het
+            .albedo
+            .with_grid(grids.res, v.clone())
+            .unwrap_or_else(|| het.albedo.clone());
         write_grid(&path, &volume, v)?;
         written.push(path.display().to_string());
     }
@@ -181,7 +194,11 @@ pub fn run(args: OptimizeArgs) -> Result<()> {
             res: None,
             spp: args.spp.max(1),
         }],
-        false => args.stage.iter().map(|s| parse_stage(s)).collect::<Result<_>>()?,
+        false => args
+            .stage
+            .iter()
+            .map(|s| parse_stage(s))
+            .collect::<Result<_>>()?,
     };
     let upsampling = match args.upsample.as_str() {
         "nearest" => Filter::Nearest,
@@ -198,12 +215,14 @@ pub fn run(args: OptimizeArgs) -> Result<()> {
     let mut views = Vec::new();
     for (n, spec) in args.target.iter().enumerate() {
         let (path, sensor) = parse_target(spec, n)?;
-        let target = image::read_exr(&path).map_err(|e| anyhow!("--target {}: {e}", path.display()))?;
+        let target =
+            image::read_exr(&path).map_err(|e| anyhow!("--target {}: {e}", path.display()))?;
         let overrides = BuildOverrides {
             sensor,
             ..Default::default()
         };
-        let built = load::build_scene(&desc, &overrides).map_err(|e| anyhow!("--target {spec}: {e}"))?;
+        let built =
+            load::build_scene(&desc, &overrides).map_err(|e| anyhow!("--target {spec}: {e}"))?;
         if let Some(first) = &scene {
             if first.camera_medium != built.camera_medium {
                 bail!("--target {spec}: its sensor sits in another medium than the first target's");
@@ -216,7 +235,9 @@ pub fn run(args: OptimizeArgs) -> Result<()> {
         scene.get_or_insert(built);
     }
     let mut scene = scene.ok_or_else(|| anyhow!("no --target"))?;
-    let medium = scene.medium_index(args.medium.as_deref()).map_err(medium_error)?;
+    let medium = scene
+        .medium_index(args.medium.as_deref())
+        .map_err(medium_error)?;
     install_handler()?;
     let settings = OptimizeSettings {
         medium,
@@ -244,7 +265,10 @@ pub fn run(args: OptimizeArgs) -> Result<()> {
     let result = optimize::optimize(&mut scene, &views, &settings, |r, scene| {
         bar.set_message(format!("{:.3e}", r.loss));
         bar.inc(1);
-        if args.snapshot_every.is_some_and(|k| k > 0 && (r.iteration + 1) % k == 0) {
+        if args
+            .snapshot_every
+            .is_some_and(|k| k > 0 && (r.iteration + 1) % k == 0)
+        {
             let path = beside(&args.output, &format!("_iter{}", r.iteration + 1), "vol");
             let grids = current_grids(scene, medium, sigma_t, albedo);
             if let Err(e) = grids.map(|g| write_grids(scene, medium, &path, &g)) {

@@ -131,6 +131,37 @@ impl<'a> PathState<'a> {
         }
     }
 
+    /// A path that scatters in the current medium at `t` along the current ray with
+    /// weight `beta`, as this one would there (its depth, hero, chain state), with none
+    /// of its derivatives: a ghost (`adjoint`).
+    fn ghost(&self, beta: Vec3) -> PathState<'static> {
+        PathState {
+            beta,
+            d_beta: Vec3::ZERO,
+            d_sigma: Vec3::ZERO,
+            d_g: Vec3::ZERO,
+            r_u: self.r_u,
+            eta: self.eta,
+            depth: self.depth,
+            null_crossings: 0,
+            medium: self.medium,
+            specular_chain: self.specular_chain,
+            last: self.last,
+            origin_clearance: None,
+            hero: self.hero,
+            ray_o: self.ray_o,
+            ray_d: self.ray_d,
+            ray_tmax: self.ray_tmax,
+            result: Vec3::ZERO,
+            d_result: Vec3::ZERO,
+            d_sigma_result: Vec3::ZERO,
+            d_g_result: Vec3::ZERO,
+            seen_emission: Vec3::ZERO,
+            valid: self.valid,
+            adjoint: None,
+        }
+    }
+
     /// What the path gathered.
     pub(super) fn sample(&self) -> PathSample {
         PathSample {

@@ -13,15 +13,15 @@
 //! null factors of ratio tracking along shadow rays, whose terms are recorded as the
 //! ray is tracked and scattered with its own contribution once that is known.
 //!
-//! A real collision where σ_t = 0 has weight 0 but derivative α ∂σ_t / rate: the path
-//! goes on as a ghost with weight β α / rate (what it would carry per unit of σ_t), its
-//! later contributions G are gathered apart, and the collision scatters A · G · scale.
-//! The ghost carries no other derivative (they would be of second order), and a second
-//! such collision ends it.
+//! The in-scattering's term where σ_t < ρ comes from ghosts (`medium::differential`):
+//! the replay forks them at tentative collisions there, with draws from a stream of the
+//! sample's own (`AdjointPath::first_pass`), traces each to its end at once, and scatters
+//! A · G ∂σ_s for its radiance G; the rendered path never sees them.
 
 use glam::{Vec3, Vec3A};
 
 use super::{Flight, PathState};
+use crate::integrator::volpath::run;
 use crate::integrator::volpath::{
     AdjointDefect, AdjointParams, Gradient, PathSettings, ShadowDerivative,
 };
@@ -38,51 +38,64 @@ pub struct GridGradients {
 }
 
 /// Reverse mode's state of one thread's paths: the buffers, and the path under way.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct AdjointPath {
     pub grads: GridGradients,
     /// ∂L/∂(the sample's radiance), per channel.
     weight: Vec3,
     replay: bool,
-    /// The radiance the path gathers before it becomes a ghost (all of it if it never
-    /// does), from the first pass.
+    /// The radiance the path gathers, from the first pass.
     total: Vec3,
-    /// What the ghost gathers, from the first pass.
-    ghost_total: Vec3,
-    /// What the path had gathered when it became a ghost (this pass).
-    ghost_at: Option<Vec3>,
     /// The current shadow ray's terms (`ShadowDerivative::record`), reused.
     shadow: Vec<(Vec3A, f32)>,
+    /// The ghosts' stream (their forks' draws and paths), the sample's own.
+    ghost_rng: Pcg32,
+    /// The ghosts forked along the current flight (traced once it ends), reused.
+    forks: Vec<Fork>,
+}
+
+/// A ghost forked at a tentative collision: where, σ_t there, its weight's rate, and
+/// (once traced) its radiance.
+#[derive(Clone, Copy, Debug)]
+struct Fork {
+    t: f32,
+    p: Vec3A,
+    sigma_t: f32,
+    rate: f32,
+    radiance: Vec3,
 }
 
 impl AdjointPath {
     pub fn new(grads: GridGradients) -> AdjointPath {
         AdjointPath {
             grads,
-            ..AdjointPath::default()
+            weight: Vec3::ZERO,
+            replay: false,
+            total: Vec3::ZERO,
+            shadow: Vec::new(),
+            ghost_rng: Pcg32::new(0, 0),
+            forks: Vec::new(),
         }
     }
 
-    /// Starts a sample's first pass, `weight` its adjoint.
-    pub fn first_pass(&mut self, weight: Vec3) {
+    /// Starts a sample's first pass, `weight` its adjoint, `ghosts` its ghosts' stream.
+    pub fn first_pass(&mut self, weight: Vec3, ghosts: Pcg32) {
         self.weight = weight;
         self.replay = false;
-        self.ghost_at = None;
+        self.ghost_rng = ghosts;
     }
 
     /// Starts the second pass of the sample whose first pass gathered `radiance`.
     pub fn second_pass(&mut self, radiance: Vec3) {
-        let at = self.ghost_at.take().unwrap_or(radiance);
-        self.total = at;
-        self.ghost_total = radiance - at;
+        self.total = radiance;
         self.replay = true;
     }
 
     /// A · (L − `gathered`): the adjoint of what the path gathers from here on, where
-    /// this pass scatters (the replay, before any ghost).
+    /// this pass scatters (the replay).
     #[inline]
     fn after(&self, gathered: Vec3) -> Option<Vec3> {
-        (self.replay && self.ghost_at.is_none()).then(|| self.weight * (self.total - gathered))
+        self.replay.then(|| self.weight * (self.total - gathered))
     }
 }
 
@@ -99,7 +112,7 @@ pub(in crate::integrator::volpath) fn shadow_derivative<'r>(
         _ => None,
     };
     let record = match (params, adjoint.as_deref_mut()) {
-        (Some(_), Some(a)) if a.replay && a.ghost_at.is_none() => {
+        (Some(_), Some(a)) if a.replay => {
             a.shadow.clear();
             Some(&mut a.shadow)
         }
@@ -128,7 +141,7 @@ impl PathState<'_> {
         else {
             return;
         };
-        if !(adj.replay && adj.ghost_at.is_none() && a.sigma_t) || adj.shadow.is_empty() {
+        if !(adj.replay && a.sigma_t) || adj.shadow.is_empty() {
             return;
         }
         let Some(het) = scene.media[a.medium as usize].heterogeneous.as_deref() else {
@@ -143,7 +156,7 @@ impl PathState<'_> {
 
     /// A free flight through the medium whose voxels are differentiated: the surface
     /// that ends the ray, then differential delta tracking up to it, its null and real
-    /// collisions' derivatives scattered where this pass does (1).
+    /// collisions' derivatives scattered where this pass does (1), then its ghosts.
     #[inline(always)]
     pub(super) fn differential_tracking(
         &mut self,
@@ -160,57 +173,129 @@ impl PathState<'_> {
             .adjoint
             .as_deref()
             .and_then(|adj| adj.after(self.result));
-        let mut grads = self.adjoint.as_deref_mut().map(|adj| &mut adj.grads);
+        let mut adj = self.adjoint.as_deref_mut().filter(|adj| adj.replay);
+        if let Some(adj) = adj.as_deref_mut() {
+            adj.forks.clear();
+        }
         let scale = het.scale;
         let null_terms = a.sigma_t && a.defect != Some(AdjointDefect::Transmittance);
-        let real_terms = a.defect != Some(AdjointDefect::Scattering);
-        let (real, w) =
-            a.tracking
-                .sample_flight(het, self.ray_o, self.ray_d, end, rng, |p, sigma_n| {
-                    if let (Some(after), Some(g), true) = (after, grads.as_deref_mut(), null_terms) {
-                        het.sigma_t
-                            .scatter(p, after * (-scale / sigma_n), &mut g.sigma_t);
-                    }
+        let ghosts = a.defect != Some(AdjointDefect::Ghosts);
+        let (o, d) = (self.ray_o, self.ray_d);
+        let real = a.tracking.sample_flight(het, o, d, end, rng, |c, real| {
+            let (Some(after), Some(adj)) = (after, adj.as_deref_mut()) else {
+                return;
+            };
+            if !real && null_terms {
+                let k = -scale / (c.majorant - c.sigma_t);
+                het.sigma_t.scatter(c.p, after * k, &mut adj.grads.sigma_t);
+            }
+            let u = adj.ghost_rng.next_1d();
+            if let Some(rate) = a.tracking.ghost_forks(&c, u).filter(|_| ghosts) {
+                adj.forks.push(Fork {
+                    t: c.t,
+                    p: c.p,
+                    sigma_t: c.sigma_t,
+                    rate,
+                    radiance: Vec3::ZERO,
                 });
-        self.beta *= w;
+            }
+        });
         let mut flight = Flight::through_vacuum();
-        let Some(c) = real else {
-            flight.si = hit;
-            flight.t = end;
-            return flight;
-        };
-        flight.scattered = true;
-        flight.t = c.t;
-        let alpha = settings.albedo[mi as usize] * c.albedo;
-        if c.sigma_t > 0.0 {
-            if let (Some(after), Some(g), true) = (after, grads, real_terms) {
-                if a.sigma_t {
-                    het.sigma_t
-                        .scatter(c.p, after * (scale / c.sigma_t), &mut g.sigma_t);
-                }
-                if a.albedo {
-                    // ∂ ln α / ∂ value: 1 / (the volume's value); nothing where it is 0
-                    // (that channel carries nothing on).
-                    let inv =
-                        Vec3::select(c.albedo.cmpgt(Vec3::ZERO), c.albedo.recip(), Vec3::ZERO);
-                    het.albedo.scatter(c.p, after * inv, &mut g.albedo);
-                }
+        match real {
+            None => {
+                flight.si = hit;
+                flight.t = end;
             }
-            self.beta *= alpha * (c.sigma_t / c.rate);
-            return flight;
+            Some(c) => {
+                flight.scattered = true;
+                flight.t = c.t;
+            }
         }
-        // σ_t = 0: the path goes on as a ghost carrying ∂σ_s alone.
-        match self.adjoint.as_deref_mut() {
-            Some(adj) if a.sigma_t && adj.ghost_at.is_none() && a.defect != Some(AdjointDefect::Ghosts) => {
-                if adj.replay {
-                    let c_ghost = adj.weight * adj.ghost_total * scale;
-                    het.sigma_t.scatter(c.p, c_ghost, &mut adj.grads.sigma_t);
-                }
-                adj.ghost_at = Some(self.result);
-                self.beta *= alpha / c.rate;
+        if let Some(after) = after {
+            self.trace_ghosts(scene, settings, a, het);
+            if let Some(c) = real.filter(|c| c.sigma_t >= a.tracking.min_real) {
+                self.real_terms(a, het, c.p, c.sigma_t, after);
             }
-            _ => self.beta = Vec3::ZERO,
+        }
+        if let Some(c) = real {
+            self.beta *= settings.albedo[mi as usize] * het.albedo.eval(c.p);
         }
         flight
+    }
+
+    /// The terms (2) of a real collision at `p` (σ_t ≥ ρ there), `after` the adjoint of
+    /// what the path gathers beyond it.
+    fn real_terms(
+        &mut self,
+        a: AdjointParams,
+        het: &HeterogeneousMedium,
+        p: Vec3A,
+        sigma_t: f32,
+        after: Vec3,
+    ) {
+        let Some(adj) = self.adjoint.as_deref_mut() else {
+            return;
+        };
+        if a.defect == Some(AdjointDefect::Scattering) {
+            return;
+        }
+        if a.sigma_t {
+            het.sigma_t
+                .scatter(p, after * (het.scale / sigma_t), &mut adj.grads.sigma_t);
+        }
+        if a.albedo {
+            // ∂ ln α / ∂ value: 1 / (the volume's value); nothing where it is 0 (that
+            // channel carries nothing on).
+            let v = het.albedo.eval(p);
+            let inv = Vec3::select(v.cmpgt(Vec3::ZERO), v.recip(), Vec3::ZERO);
+            het.albedo.scatter(p, after * inv, &mut adj.grads.albedo);
+        }
+    }
+
+    /// Traces the ghosts forked along the flight just made (from this path's state at
+    /// its start) and scatters A · G ∂σ_s of each: ∂σ_s = α scale w for sigma_t's
+    /// values, σ_t (factor) w for the albedo's.
+    fn trace_ghosts(
+        &mut self,
+        scene: &Scene,
+        settings: &PathSettings,
+        a: AdjointParams,
+        het: &HeterogeneousMedium,
+    ) {
+        let Some(adj) = self.adjoint.as_deref_mut() else {
+            return;
+        };
+        if adj.forks.is_empty() {
+            return;
+        }
+        let mut forks = std::mem::take(&mut adj.forks);
+        let mut ghost_rng = adj.ghost_rng.clone();
+        for f in forks.iter_mut() {
+            let mut ghost = self.ghost(self.beta / f.rate);
+            let mut flight = Flight::through_vacuum();
+            flight.scattered = true;
+            flight.t = f.t;
+            if ghost.scatter_in_medium(scene, settings, &flight, &mut ghost_rng) {
+                run(&mut ghost, scene, settings, &mut ghost_rng);
+            }
+            f.radiance = ghost.result;
+        }
+        let adj = self.adjoint.as_deref_mut().expect("checked above");
+        adj.ghost_rng = ghost_rng;
+        let factor = settings.albedo[a.medium as usize];
+        for f in &forks {
+            let ag = adj.weight * f.radiance;
+            if a.sigma_t {
+                let alpha = factor * het.albedo.eval(f.p);
+                het.sigma_t
+                    .scatter(f.p, ag * alpha * het.scale, &mut adj.grads.sigma_t);
+            }
+            if a.albedo {
+                het.albedo
+                    .scatter(f.p, ag * factor * f.sigma_t, &mut adj.grads.albedo);
+            }
+        }
+        forks.clear();
+        adj.forks = forks;
     }
 }
