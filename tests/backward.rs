@@ -282,3 +282,79 @@ fn empty_voxels_get_their_in_scattering_gradient() {
     let (t, ok) = agree(with_dof(&along(Some(AdjointDefect::Ghosts))), fdv);
     assert!(!ok, "without ghosts undetected: t = {t}");
 }
+
+/// ⟨∇L, V⟩ along the three fields of reference/derivatives/grid_adjoint.json, for
+/// sigma_t's and the albedo's values, against Mitsuba 3's Richardson finite differences
+/// and its prbvolpath gradient (which agree with each other on this grid). Power: each
+/// value 5% too large, or negated, is rejected wherever the comparison resolves 5%
+/// (at least four of the twelve).
+#[test]
+fn directional_derivatives_agree_with_mitsuba() {
+    let text =
+        std::fs::read_to_string(root().join("reference/derivatives/grid_adjoint.json")).unwrap();
+    let reference: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let fields = ["smooth", "box", "noise"];
+    // The fields are signed, which a volume may not be: their data read as it lies.
+    let v: Vec<Vec<f32>> = fields
+        .iter()
+        .map(|f| {
+            let path = root().join(format!("mitsuba_scenes/volumes/grid_adjoint_v_{f}.vol"));
+            let bytes = std::fs::read(path).unwrap();
+            let data = &bytes[mediareg::medium::grid::VOL_HEADER_BYTES..];
+            data.chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect()
+        })
+        .collect();
+    let (seeds, spp) = (16u64, 256u32);
+    let mut ours = vec![vec![Vec::new(); fields.len()]; 2];
+    for seed in 0..seeds {
+        let g = gradients(&scene(spp, 2000 + seed, None), None);
+        for (k, grad) in [&g.sigma_t, &g.albedo].iter().enumerate() {
+            for (i, field) in v.iter().enumerate() {
+                ours[k][i].push(dot(field, grad.as_ref().unwrap()));
+            }
+        }
+    }
+    let mut resolved = 0;
+    for (k, param) in ["sigma_t", "albedo"].iter().enumerate() {
+        for (i, field) in fields.iter().enumerate() {
+            let r = &reference["params"][param]["fields"][field];
+            let ours = with_dof(&ours[k][i]);
+            for method in ["fd", "ad"] {
+                let m = &r[method];
+                let n = m["seeds"]
+                    .as_f64()
+                    .unwrap_or(reference["ad"]["seeds"].as_f64().unwrap());
+                let theirs = (
+                    m["mean"].as_f64().unwrap(),
+                    m["se"].as_f64().unwrap(),
+                    n - 1.0,
+                );
+                let (t, ok) = agree(ours, theirs);
+                eprintln!("{param} {field}: mediareg {:.5e} ± {:.1e}, Mitsuba {method} {:.5e} ± {:.1e}, t {t:.2}", ours.0, ours.1, theirs.0, theirs.1);
+                assert!(ok, "{param} along {field}: mediareg {ours:?} vs Mitsuba {method} {theirs:?}: t = {t}");
+                let se = (ours.1.powi(2) + theirs.1.powi(2)).sqrt();
+                if 0.05 * theirs.0.abs() > 6.0 * se {
+                    let (t, ok) = agree((ours.0 * 1.05, ours.1 * 1.05, ours.2), theirs);
+                    assert!(
+                        !ok,
+                        "{param} {field} 5% too large undetected against {method}: t {t}"
+                    );
+                    resolved += 1;
+                }
+                if theirs.0.abs() > 6.0 * se {
+                    let (t, ok) = agree((-ours.0, ours.1, ours.2), theirs);
+                    assert!(
+                        !ok,
+                        "{param} {field} negated undetected against {method}: t {t}"
+                    );
+                }
+            }
+        }
+    }
+    assert!(
+        resolved >= 4,
+        "only {resolved} of 12 comparisons resolve 5%"
+    );
+}
