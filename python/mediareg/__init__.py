@@ -20,6 +20,7 @@ __all__ = [
     "Error",
     "Scene",
     "SceneError",
+    "backward",
     "denoise",
     "fit",
     "load_file",
@@ -28,6 +29,7 @@ __all__ = [
     "regularize",
     "render",
     "write_exr",
+    "write_vol",
 ]
 
 
@@ -149,6 +151,27 @@ def fit(path, targets, params=("sigma_t", "albedo", "g"), medium=None, spp=32,
     return _mediareg.fit(path, targets, params=list(params), medium=medium, spp=spp,
                          iterations=iterations, seed=seed, search_path=search_path,
                          **defines)
+
+
+def backward(scene, adjoint, params=("sigma_t",), medium=None, spp=None, seed=0,
+             threads=None):
+    """Reverse-mode gradients (``mediareg backward``): for an adjoint image ``adjoint``
+    (H, W, 3), dL/d(pixel, channel), the gradient of L = sum(adjoint * image) in every
+    value of a grid medium's volumes. ``params``: of ``sigma_t`` (its values before the
+    medium's scale) and ``albedo``. Returns a dict of float32 arrays shaped as the grids'
+    data, (z, y, x) or (z, y, x, 3). A loop of one's own (numpy, PyTorch) writes its
+    estimate with ``write_vol`` and loads the scene with it (``load_file(path,
+    sigma_t_file=...)`` where the scene names its grid by a parameter): docs/python.md.
+    """
+    adjoint = _np.ascontiguousarray(adjoint, dtype=_np.float32)
+    return _mediareg.backward(scene, adjoint, params=list(params), medium=medium, spp=spp,
+                              seed=seed, threads=threads)
+
+
+def write_vol(path, array):
+    """Writes a (z, y, x) or (z, y, x, 3) array as a Mitsuba ``.vol`` grid (bounding box
+    the unit cube; the scene's ``to_world`` places it), readable by Mitsuba 3 and mediareg."""
+    _mediareg.write_vol(str(path), _np.ascontiguousarray(array, dtype=_np.float32))
 
 
 def write_exr(path, array, spp=None):

@@ -3,6 +3,7 @@
 //! the command line calls, so the module's images (and EXR files) are the CLI's bit for
 //! bit. `python/mediareg/__init__.py` documents the API users see.
 
+mod backward;
 mod fit;
 mod images;
 mod regularize;
@@ -144,6 +145,8 @@ fn _mediareg(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
     m.add_function(wrap_pyfunction!(regularize::regularize, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
+    m.add_function(wrap_pyfunction!(backward::backward, m)?)?;
+    m.add_function(wrap_pyfunction!(backward::write_vol, m)?)?;
     m.add_function(wrap_pyfunction!(images::write_exr, m)?)?;
     m.add_function(wrap_pyfunction!(images::read_exr, m)?)?;
     m.add_function(wrap_pyfunction!(images::merge, m)?)?;
