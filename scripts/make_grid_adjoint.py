@@ -86,6 +86,7 @@ def fields():
     noise = np.random.default_rng(2024).uniform(-1.0, 1.0, size=(N, N, N))
     v = {name: (field * taper).astype(np.float32)
          for name, field in (("smooth", smooth), ("box", box), ("noise", noise))}
+    v["zero"] = (density == 0).astype(np.float32)
     assert (taper[box > 0] == 1).all()
     return density, albedo, v
 

@@ -5,7 +5,9 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray3, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::{
+    PyArray1, PyArrayMethods, PyReadonlyArray3, PyReadonlyArrayDyn, PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -49,11 +51,17 @@ pub fn backward<'py>(
         match p.as_str() {
             "sigma_t" => sigma_t = true,
             "albedo" => albedo = true,
-            o => return Err(bad_arg(format!("params: unknown volume {o:?} (sigma_t, albedo)"))),
+            o => {
+                return Err(bad_arg(format!(
+                    "params: unknown volume {o:?} (sigma_t, albedo)"
+                )))
+            }
         }
     }
     if spp == Some(0) {
-        return Err(bad_arg("spp must be at least 1 (None: the sampler's sample_count)"));
+        return Err(bad_arg(
+            "spp must be at least 1 (None: the sampler's sample_count)",
+        ));
     }
     let adjoint = from_numpy(&adjoint)?;
     let data = Arc::clone(&scene.get().inner);
@@ -107,7 +115,11 @@ pub fn write_vol(path: PathBuf, array: PyReadonlyArrayDyn<'_, f32>) -> PyResult<
     let channels = match s.len() {
         3 => 1,
         4 if s[3] == 3 => 3,
-        _ => return Err(bad_arg("write_vol: a (z, y, x) or (z, y, x, 3) float32 array")),
+        _ => {
+            return Err(bad_arg(
+                "write_vol: a (z, y, x) or (z, y, x, 3) float32 array",
+            ))
+        }
     };
     let data: Vec<f32> = array.as_array().iter().copied().collect();
     let grid = GridData {

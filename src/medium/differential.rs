@@ -28,6 +28,7 @@
 //! * an empty cell's local majorant is 0: no tentative collision samples its
 //!   transmittance's derivative, and a thin cell's few samples give each a large term
 //!   (a Poisson estimate of ∫f at rate λ has variance ∫f²/λ).
+//!
 //! Here, for the medium whose voxels are differentiated (both passes of the adjoint
 //! render, so that they take the same paths): σ̄' = max(κ σ̄_cell, σ̄_floor) with κ > 1
 //! and σ̄_floor a fraction of the grid's global majorant, so σ_n ≥ (1 − 1/κ) σ̄' and

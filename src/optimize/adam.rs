@@ -68,7 +68,8 @@ mod tests {
         let mut adam = Adam::new(0.01, 3);
         let grad =
             |x: &[f32]| -> Vec<f32> { x.iter().zip(&c).map(|(x, c)| 2.0 * (x - c)).collect() };
-        adam.step(&mut x, &grad(&x), (-1.0, 1.0));
+        let g = grad(&x);
+        adam.step(&mut x, &g, (-1.0, 1.0));
         for (x, c) in x.iter().zip(&c) {
             assert!((x - 0.01 * c.signum()).abs() < 1e-6, "{x}");
         }

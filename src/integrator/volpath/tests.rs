@@ -492,7 +492,15 @@ fn a_sealed_medium_skips_only_emitter_samples_that_cannot_arrive() {
         for _ in 0..2000 {
             let p = square_to_uniform_sphere(rng.next_2d()) * (0.95 * rng.next_1d().cbrt());
             let d_in = square_to_uniform_sphere(rng.next_2d());
-            let x = medium_emitter_sample(&scene, 0, p, d_in, 0.0, None, &mut rng);
+            let x = medium_emitter_sample(
+                &scene,
+                0,
+                p,
+                d_in,
+                0.0,
+                &mut ShadowDerivative::forward(None),
+                &mut rng,
+            );
             let value = x.map_or(Vec3::ZERO, |x| x.value);
             assert_eq!(
                 value,
