@@ -53,7 +53,7 @@ use crate::sampling::Pcg32;
 /// The majorant's inflation κ over the rendered one.
 const INFLATION: f32 = 1.25;
 /// σ̄_floor over the grid's global majorant (scale · its largest value).
-const FLOOR_OF_GLOBAL: f32 = 0.5;
+const FLOOR_OF_GLOBAL: f32 = 0.1;
 /// ρ over the global majorant.
 const MIN_REAL_OF_GLOBAL: f32 = 0.005;
 /// Where the grid is empty: σ̄_floor and ρ times the grid box's diagonal.
