@@ -41,6 +41,8 @@ pub struct Stage {
     pub iterations: u32,
     pub res: Option<[usize; 3]>,
     pub spp: u32,
+    /// Adam's learning rate in this stage (None: the settings').
+    pub lr: Option<f32>,
 }
 
 /// How to optimize.
@@ -246,6 +248,8 @@ pub fn optimize(
     let mut iteration = 0u32;
     let mut interrupted = false;
     'stages: for stage in &s.stages {
+        adam_sigma.lr = stage.lr.unwrap_or(s.lr);
+        adam_albedo.lr = stage.lr.unwrap_or(s.lr);
         if let Some(res) = stage.res.filter(|&r| r != grids.res) {
             grids = grids_at(scene, s, Some(res));
             set_grids(scene, s.medium, &grids);

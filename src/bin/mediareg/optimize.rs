@@ -39,9 +39,10 @@ pub struct OptimizeArgs {
     /// Adam's learning rate (the tutorial's 0.02).
     #[arg(long, default_value_t = 0.02)]
     pub lr: f32,
-    /// A stage of the schedule, ITERATIONS:RES:SPP (RES a grid side, or `-` to keep the
-    /// grid's); repeat for coarse to fine. Default: one stage of --iterations at --spp.
-    #[arg(long, value_name = "ITERS:RES:SPP")]
+    /// A stage of the schedule, ITERATIONS:RES:SPP[:LR] (RES a grid side, or `-` to keep
+    /// the grid's; LR this stage's learning rate, else --lr); repeat for coarse to fine.
+    /// Default: one stage of --iterations at --spp.
+    #[arg(long, value_name = "ITERS:RES:SPP[:LR]")]
     pub stage: Vec<String>,
     /// Iterations without --stage (each an Adam step per target).
     #[arg(long, default_value_t = 40)]
@@ -100,9 +101,16 @@ fn parse_range(flag: &str, s: &str) -> Result<(f32, f32)> {
 
 fn parse_stage(s: &str) -> Result<Stage> {
     let parts: Vec<&str> = s.split(':').collect();
-    let bad = || anyhow!("--stage {s}: expected ITERATIONS:RES:SPP, e.g. 20:16:8 (RES may be -)");
-    let [it, res, spp] = parts[..] else {
-        return Err(bad());
+    let bad =
+        || anyhow!("--stage {s}: expected ITERATIONS:RES:SPP[:LR], e.g. 20:16:8 (RES may be -)");
+    let (it, res, spp, lr) = match parts[..] {
+        [it, res, spp] => (it, res, spp, None),
+        [it, res, spp, lr] => (it, res, spp, Some(lr)),
+        _ => return Err(bad()),
+    };
+    let lr = match lr {
+        Some(v) => Some(v.parse::<f32>().ok().filter(|v| *v > 0.0).ok_or_else(bad)?),
+        None => None,
     };
     let iterations: u32 = it.parse().map_err(|_| bad())?;
     let spp: u32 = spp.parse().map_err(|_| bad())?;
@@ -123,6 +131,7 @@ fn parse_stage(s: &str) -> Result<Stage> {
         iterations,
         res,
         spp,
+        lr,
     })
 }
 
@@ -193,6 +202,7 @@ pub fn run(args: OptimizeArgs) -> Result<()> {
             iterations: args.iterations,
             res: None,
             spp: args.spp.max(1),
+            lr: None,
         }],
         false => args
             .stage
@@ -299,7 +309,7 @@ pub fn run(args: OptimizeArgs) -> Result<()> {
         "scene": args.scene.display().to_string(),
         "params": args.params,
         "lr": args.lr,
-        "stages": stages.iter().map(|s| json!({"iterations": s.iterations, "res": s.res, "spp": s.spp})).collect::<Vec<_>>(),
+        "stages": stages.iter().map(|s| json!({"iterations": s.iterations, "res": s.res, "spp": s.spp, "lr": s.lr})).collect::<Vec<_>>(),
         "upsample": args.upsample,
         "iterations": iterations,
         "seconds_total": seconds,
