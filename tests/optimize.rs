@@ -29,6 +29,25 @@ fn run_ok(cmd: &mut Command) -> String {
     text
 }
 
+/// `mediareg backward SCENE --adjoint A -o PREFIX`, which must fail: its message.
+fn backward_refused(scene: &Path, adjoint: &Path, prefix: &Path) -> String {
+    let out = mediareg()
+        .arg("backward")
+        .arg(scene)
+        .arg("--adjoint")
+        .arg(adjoint)
+        .arg("-o")
+        .arg(prefix)
+        .output()
+        .unwrap();
+    assert!(
+        !out.status.success(),
+        "backward on {} succeeded",
+        scene.display()
+    );
+    String::from_utf8_lossy(&out.stderr).to_string()
+}
+
 fn scene() -> PathBuf {
     root().join("mitsuba_scenes/grid_adjoint.xml")
 }
@@ -114,20 +133,8 @@ fn backward_writes_volumes_and_refuses_what_it_cannot_do() {
         assert_eq!(values, 512, "{name}");
     }
     let cube = root().join("mitsuba_scenes/medium_cube.xml");
-    let out = mediareg()
-        .arg("backward")
-        .arg(&cube)
-        .arg("--adjoint")
-        .arg(&adjoint)
-        .arg("-o")
-        .arg(&prefix)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && err.contains("render --gradient"),
-        "{err}"
-    );
+    let err = backward_refused(&cube, &adjoint, &prefix);
+    assert!(err.contains("render --gradient"), "{err}");
     let small = dir.join("small.exr");
     run_ok(
         mediareg()
@@ -136,18 +143,6 @@ fn backward_writes_volumes_and_refuses_what_it_cannot_do() {
             .args(["--spp", "1", "--no-png", "-o"])
             .arg(&small),
     );
-    let out = mediareg()
-        .arg("backward")
-        .arg(scene())
-        .arg("--adjoint")
-        .arg(&small)
-        .arg("-o")
-        .arg(&prefix)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && err.contains("the adjoint image is"),
-        "{err}"
-    );
+    let err = backward_refused(&scene(), &small, &prefix);
+    assert!(err.contains("the adjoint image is"), "{err}");
 }
