@@ -38,6 +38,8 @@ fn sphere_under_sky() -> SceneParts {
             emitter: None,
             interior: None,
             exterior: None,
+            id: None,
+            origin: "the test's sphere".to_string(),
             tangent_frame: false,
         }],
         bsdfs: vec![Bsdf::Diffuse {

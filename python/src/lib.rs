@@ -68,10 +68,13 @@ impl PyScene {
     fn spp(&self) -> u32 {
         self.inner.shot.spp
     }
-    /// The media's XML ids (None for an unnamed one), for `render(medium=...)`.
+    /// The media as `render(medium=...)` takes them: the XML id, else the
+    /// `mi.traverse` key (`<shape id>.interior_medium`), else the slot and its shape's line.
     #[getter]
-    fn media(&self) -> Vec<Option<String>> {
-        self.inner.media.iter().map(|m| m.id.clone()).collect()
+    fn media(&self) -> Vec<String> {
+        (0..self.inner.media.len() as u32)
+            .map(|m| self.inner.medium_name(m))
+            .collect()
     }
     /// What the loader accepted but the user should hear about (one line each).
     #[getter]

@@ -77,7 +77,7 @@ pub fn render<'py>(
     } else {
         integrator::medium_gradient(&data, medium, &params).map_err(|e| {
             let hint = match &e {
-                GradientError::Medium(MediumChoiceError::Several { .. }) => " (medium=ID)",
+                GradientError::Medium(MediumChoiceError::Several { .. }) => " (medium=NAME)",
                 _ => "",
             };
             bad_arg(format!(

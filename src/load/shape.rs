@@ -94,6 +94,10 @@ impl Builder<'_> {
             "sphere" => "center, radius, to_world, flip_normals, bsdf, emitter, interior, exterior",
             _ => "to_world, flip_normals, bsdf, emitter, interior, exterior",
         };
+        let (id, origin) = (
+            p.obj.id.clone(),
+            format!("{} at {}", p.obj.label(), p.loc()),
+        );
         p.finish(names)?;
         self.geometries.push(geometry);
         self.shapes.push(ShapeInfo {
@@ -101,6 +105,8 @@ impl Builder<'_> {
             emitter,
             interior,
             exterior,
+            id,
+            origin,
             tangent_frame,
         });
         Ok(())

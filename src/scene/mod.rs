@@ -5,6 +5,7 @@
 pub mod camera;
 pub mod cost;
 pub mod film;
+pub mod medium_names;
 pub mod prepare;
 pub mod ray_log;
 pub mod shot;
@@ -24,6 +25,7 @@ use crate::medium::Medium;
 use ray_log::RayLog;
 use shot::Shot;
 
+pub use medium_names::{MediumChoiceError, MediumSlot};
 pub use prepare::SceneParts;
 
 /// Which integrator the file asks for, with its settings.
@@ -57,6 +59,10 @@ pub struct ShapeInfo {
     pub emitter: Option<u32>,
     pub interior: Option<u32>,
     pub exterior: Option<u32>,
+    /// Its XML id, by which `mi.traverse` keys its media (`<id>.interior_medium`).
+    pub id: Option<String>,
+    /// Where the file declares it, for messages (`shape "cube" at scene.xml:12:5`).
+    pub origin: String,
     /// The shading frame follows ∂p/∂u (Mitsuba's `initialize_sh_frame`): needed by an
     /// anisotropic BSDF; any other frame around the normal serves the rest.
     pub tangent_frame: bool,
@@ -128,34 +134,6 @@ pub struct SurfaceInteraction {
 }
 
 impl Scene {
-    /// The medium a derivative refers to: the one whose XML id is `name`, or the only
-    /// one. The error names the choices.
-    pub fn medium_index(&self, name: Option<&str>) -> Result<u32, MediumChoiceError> {
-        let ids = || -> Vec<String> {
-            self.media
-                .iter()
-                .enumerate()
-                .map(|(i, m)| m.id.clone().unwrap_or_else(|| format!("(unnamed #{i})")))
-                .collect()
-        };
-        match name {
-            Some(n) => self
-                .media
-                .iter()
-                .position(|m| m.id.as_deref() == Some(n))
-                .map(|i| i as u32)
-                .ok_or_else(|| MediumChoiceError::NoSuchId {
-                    id: n.to_string(),
-                    media: ids(),
-                }),
-            None => match self.media.len() {
-                0 => Err(MediumChoiceError::NoMedium),
-                1 => Ok(0),
-                _ => Err(MediumChoiceError::Several { media: ids() }),
-            },
-        }
-    }
-
     // One out-of-line copy with the BVH's traversal inlined into it (Accel::intersect
     // is forced inline). Left to the compiler, which split depended on how the crate
     // fell into codegen units: adding unrelated code inlined this into its callers
@@ -309,39 +287,3 @@ impl Scene {
         }
     }
 }
-
-/// Why `Scene::medium_index` could not choose a medium (the command line names its
-/// `--medium` flag).
-#[derive(Clone, Debug, PartialEq)]
-pub enum MediumChoiceError {
-    NoSuchId {
-        id: String,
-        media: Vec<String>,
-    },
-    NoMedium,
-    /// Several media and no id given.
-    Several {
-        media: Vec<String>,
-    },
-}
-
-impl std::fmt::Display for MediumChoiceError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            MediumChoiceError::NoSuchId { id, media } => write!(
-                f,
-                "no medium has the id {id}; the scene's media: {}",
-                media.join(", ")
-            ),
-            MediumChoiceError::NoMedium => write!(f, "the scene has no medium"),
-            MediumChoiceError::Several { media } => write!(
-                f,
-                "the scene has {} media, name one by its id: {}",
-                media.len(),
-                media.join(", ")
-            ),
-        }
-    }
-}
-
-impl std::error::Error for MediumChoiceError {}

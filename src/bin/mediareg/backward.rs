@@ -28,8 +28,9 @@ pub struct BackwardArgs {
     /// The volumes to differentiate, comma-separated: sigma_t, albedo.
     #[arg(long, value_name = "PARAMS", default_value = "sigma_t")]
     pub params: String,
-    /// The medium (its XML id); needed when the scene has several.
-    #[arg(long, value_name = "ID")]
+    /// The medium: its XML id, its slot (interior, exterior) or its mi.traverse key
+    /// (SHAPE_ID.interior_medium); needed when the scene has several.
+    #[arg(long, value_name = "NAME")]
     pub medium: Option<String>,
 }
 

@@ -343,8 +343,10 @@ pub fn parse_point(s: &str) -> Result<Vec3> {
 /// A medium that could not be chosen, worded with the `--medium` flag.
 pub fn medium_error(e: MediumChoiceError) -> anyhow::Error {
     match &e {
-        MediumChoiceError::NoSuchId { id, .. } => anyhow!("--medium {id}: {e}"),
-        MediumChoiceError::Several { .. } => anyhow!("{e} (--medium ID)"),
+        MediumChoiceError::NoSuch { name, .. } | MediumChoiceError::Ambiguous { name, .. } => {
+            anyhow!("--medium {name}: {e}")
+        }
+        MediumChoiceError::Several { .. } => anyhow!("{e} (--medium NAME)"),
         MediumChoiceError::NoMedium => anyhow!("{e}"),
     }
 }

@@ -27,8 +27,9 @@ pub struct FitArgs {
     /// `--target lit_left.exr@light_x=-2,light_y=1`.
     #[arg(long, value_name = "IMAGE.exr[@NAME=VALUE,...]", required = true)]
     pub target: Vec<String>,
-    /// The medium's XML id (needed when the scene has several).
-    #[arg(long, value_name = "ID")]
+    /// The medium: its XML id, its slot (interior, exterior) or its mi.traverse key
+    /// (SHAPE_ID.interior_medium); needed when the scene has several.
+    #[arg(long, value_name = "NAME")]
     pub medium: Option<String>,
     /// The parameters to fit, comma-separated: sigma_t, albedo, g, scale.
     #[arg(long, value_name = "PARAMS", default_value = "sigma_t,albedo,g")]

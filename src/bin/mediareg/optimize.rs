@@ -33,8 +33,9 @@ pub struct OptimizeArgs {
     /// The volumes to optimize, comma-separated: sigma_t, albedo.
     #[arg(long, value_name = "PARAMS", default_value = "sigma_t")]
     pub params: String,
-    /// The medium's XML id (needed when the scene has several).
-    #[arg(long, value_name = "ID")]
+    /// The medium: its XML id, its slot (interior, exterior) or its mi.traverse key
+    /// (SHAPE_ID.interior_medium); needed when the scene has several.
+    #[arg(long, value_name = "NAME")]
     pub medium: Option<String>,
     /// Adam's learning rate (the tutorial's 0.02).
     #[arg(long, default_value_t = 0.02)]

@@ -24,8 +24,9 @@ use crate::common::{
 pub struct RegularizeArgs {
     #[command(flatten)]
     pub args: SceneArgs,
-    /// The medium (its XML id) to extrapolate; needed when the scene has several.
-    #[arg(long, value_name = "ID")]
+    /// The medium to extrapolate: its XML id, its slot (interior, exterior) or its
+    /// mi.traverse key (SHAPE_ID.interior_medium); needed when the scene has several.
+    #[arg(long, value_name = "NAME")]
     pub medium: Option<String>,
     /// Source albedo = factor × the scene's albedo (per channel), or `auto` (the
     /// difference predictor: chosen by a pilot). Default: auto with `--predict

@@ -27,9 +27,10 @@ pub struct RenderArgs {
     /// d(radiance_c)/dg (volpath only).
     #[arg(long, value_name = "PARAMS")]
     pub gradient: Option<String>,
-    /// The medium (its XML id) whose parameters --gradient differentiates; needed when
-    /// the scene has several.
-    #[arg(long, value_name = "ID", requires = "gradient")]
+    /// The medium whose parameters --gradient differentiates: its XML id, its slot
+    /// (interior, exterior) or its mi.traverse key (SHAPE_ID.interior_medium); needed
+    /// when the scene has several.
+    #[arg(long, value_name = "NAME", requires = "gradient")]
     pub medium: Option<String>,
     /// Record every ray the render casts into the scene to FILE (for
     /// scripts/cast_bound), then cast them again one by one on one thread and write
