@@ -310,104 +310,93 @@ impl Volume {
                 grad[i] += (w.x + w.y + w.z) * k;
             } else {
                 for c in 0..3 {
-                    grad[3 * i + c] += w[c] * k;
+                    grad[i * 3 + c] += w[c] * k;
                 }
             }
         };
-        let g = grid;
-        let n = [g.res[0] as i32, g.res[1] as i32, g.res[2] as i32];
-        let res = Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32);
-        let (sy, sz) = (g.res[0], g.res[0] * g.res[1]);
         match filter {
-            Filter::Nearest => {
-                let x = (q * res).floor();
-                let i = |k: usize, v: f32| wrap.index(v as i32, n[k]);
-                add(i(0, x.x) + i(1, x.y) * sy + i(2, x.z) * sz, 1.0);
-            }
+            Filter::Nearest => add(nearest_voxel(grid, *wrap, q), 1.0),
             Filter::Trilinear => {
-                let x = q * res - 0.5;
-                let f = x.floor();
-                let w1 = x - f;
-                let w0 = Vec3::ONE - w1;
-                let i0 = [f.x as i32, f.y as i32, f.z as i32];
-                for (c, wz) in [w0.z, w1.z].into_iter().enumerate() {
-                    let z = wrap.index(i0[2] + c as i32, n[2]) * sz;
-                    for (b, wy) in [w0.y, w1.y].into_iter().enumerate() {
-                        let y = wrap.index(i0[1] + b as i32, n[1]) * sy;
-                        for (a, wx) in [w0.x, w1.x].into_iter().enumerate() {
-                            let xx = wrap.index(i0[0] + a as i32, n[0]);
-                            add(z + y + xx, wx * wy * wz);
-                        }
-                    }
+                let (index, weight) = trilinear_corners(grid, *wrap, q);
+                for k in 0..8 {
+                    add(index[k], weight[k]);
                 }
             }
         }
     }
 }
 
-#[inline]
-fn fetch(g: &GridData, x: usize, y: usize, z: usize) -> Vec3 {
-    let i = ((z * g.res[1] + y) * g.res[0] + x) * g.channels;
-    if g.channels == 1 {
-        Vec3::splat(g.data[i])
-    } else {
-        Vec3::new(g.data[i], g.data[i + 1], g.data[i + 2])
+// The voxels a lookup reads and their weights, for the lookup to sum along and its
+// adjoint (`Volume::scatter`) to add along, so that the two agree by construction.
+
+/// The voxel (its data offset over the channel count) that `nearest` reads at local
+/// point `q`.
+#[inline(always)]
+fn nearest_voxel(g: &GridData, wrap: Wrap, q: Vec3) -> usize {
+    let n = [g.res[0] as i32, g.res[1] as i32, g.res[2] as i32];
+    let x = (q * Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32)).floor();
+    let i = |k: usize, v: f32| wrap.index(v as i32, n[k]);
+    i(0, x.x) + i(1, x.y) * g.res[0] + i(2, x.z) * g.res[0] * g.res[1]
+}
+
+/// The 8 voxels `trilinear` reads at local point `q` and their weights, x fastest, then
+/// y, then z (the order the lookup sums in).
+#[inline(always)]
+fn trilinear_corners(g: &GridData, wrap: Wrap, q: Vec3) -> ([usize; 8], [f32; 8]) {
+    let n = [g.res[0] as i32, g.res[1] as i32, g.res[2] as i32];
+    let x = q * Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32) - 0.5;
+    let f = x.floor();
+    let w1 = x - f;
+    let w0 = Vec3::ONE - w1;
+    let i0 = [f.x as i32, f.y as i32, f.z as i32];
+    // Offsets along each axis (the voxel index times its stride).
+    let (sy, sz) = (g.res[0], g.res[0] * g.res[1]);
+    let ix = [wrap.index(i0[0], n[0]), wrap.index(i0[0] + 1, n[0])];
+    let iy = [
+        wrap.index(i0[1], n[1]) * sy,
+        wrap.index(i0[1] + 1, n[1]) * sy,
+    ];
+    let iz = [
+        wrap.index(i0[2], n[2]) * sz,
+        wrap.index(i0[2] + 1, n[2]) * sz,
+    ];
+    let (wx, wy, wz) = ([w0.x, w1.x], [w0.y, w1.y], [w0.z, w1.z]);
+    let mut index = [0; 8];
+    let mut weight = [0.0; 8];
+    for c in 0..2 {
+        for b in 0..2 {
+            for a in 0..2 {
+                index[4 * c + 2 * b + a] = iz[c] + iy[b] + ix[a];
+                weight[4 * c + 2 * b + a] = wx[a] * wy[b] * wz[c];
+            }
+        }
     }
+    (index, weight)
 }
 
 /// The grid's value at local point `q` (unit cube coordinates).
 #[inline]
 fn lookup(g: &GridData, filter: Filter, wrap: Wrap, q: Vec3) -> Vec3 {
-    let n = [g.res[0] as i32, g.res[1] as i32, g.res[2] as i32];
-    let res = Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32);
+    let value = |i: usize| match g.channels {
+        1 => Vec3::splat(g.data[i]),
+        _ => Vec3::new(g.data[3 * i], g.data[3 * i + 1], g.data[3 * i + 2]),
+    };
     match filter {
-        Filter::Nearest => {
-            let x = (q * res).floor();
-            let i = |k: usize, v: f32| wrap.index(v as i32, n[k]);
-            fetch(g, i(0, x.x), i(1, x.y), i(2, x.z))
-        }
+        Filter::Nearest => value(nearest_voxel(g, wrap, q)),
         Filter::Trilinear => {
-            let x = q * res - 0.5;
-            let f = x.floor();
-            let w1 = x - f;
-            let w0 = Vec3::ONE - w1;
-            let i0 = [f.x as i32, f.y as i32, f.z as i32];
-            // Offsets into `data` along each axis (the voxel index times its stride).
-            let (sy, sz) = (g.res[0], g.res[0] * g.res[1]);
-            let ix = [wrap.index(i0[0], n[0]), wrap.index(i0[0] + 1, n[0])];
-            let iy = [
-                wrap.index(i0[1], n[1]) * sy,
-                wrap.index(i0[1] + 1, n[1]) * sy,
-            ];
-            let iz = [
-                wrap.index(i0[2], n[2]) * sz,
-                wrap.index(i0[2] + 1, n[2]) * sz,
-            ];
-            let wx = [w0.x, w1.x];
-            let wy = [w0.y, w1.y];
-            let wz = [w0.z, w1.z];
+            let (index, weight) = trilinear_corners(g, wrap, q);
             if g.channels == 1 {
                 // A scalar grid (the common density): one channel summed in the same
                 // order as the three below, so the value is the same to the bit.
                 let mut v = 0.0f32;
-                for (c, &z) in iz.iter().enumerate() {
-                    for (b, &y) in iy.iter().enumerate() {
-                        for (a, &xx) in ix.iter().enumerate() {
-                            v += g.data[z + y + xx] * (wx[a] * wy[b] * wz[c]);
-                        }
-                    }
+                for k in 0..8 {
+                    v += g.data[index[k]] * weight[k];
                 }
                 return Vec3::splat(v);
             }
             let mut v = Vec3::ZERO;
-            for (c, &z) in iz.iter().enumerate() {
-                for (b, &y) in iy.iter().enumerate() {
-                    for (a, &xx) in ix.iter().enumerate() {
-                        let i = 3 * (z + y + xx);
-                        let value = Vec3::new(g.data[i], g.data[i + 1], g.data[i + 2]);
-                        v += value * (wx[a] * wy[b] * wz[c]);
-                    }
-                }
+            for k in 0..8 {
+                v += value(index[k]) * weight[k];
             }
             v
         }
