@@ -183,7 +183,7 @@ fn the_default_pipelines_beat_a_plain_render_against_mitsuba() {
     // The bilateral pipeline's pilot needs a sequence of 80 spp × 11 frames to be
     // affordable (at less the default is plain volpath, which cannot beat itself).
     let mut pipelines = vec![(Some(false), 80, 11)];
-    if mediareg::denoise::oidn::load().is_ok() {
+    if common::oidn_present() {
         pipelines.push((Some(true), 16, 5));
     }
     for (oidn, spp, frames) in pipelines {

@@ -83,7 +83,7 @@ fn a_generated_report_shows_every_image() {
     let html = std::fs::read_to_string(&page).unwrap();
     // The reference, the first seed's frame rows (volpath, volpath_oidn where OIDN
     // loads, regularized_paper, regularized, volpath_filtered) and their error maps.
-    let methods = 4 + mediareg::denoise::oidn::load().is_ok() as usize;
+    let methods = 4 + common::oidn_present() as usize;
     let n = 1 + 2 * methods;
     assert_eq!(html.matches("<img ").count(), n);
     if let Some((ok, all)) = images_loaded(&page) {

@@ -49,7 +49,7 @@ fn table_files_agree_with_the_images_they_name() {
     let rows: Vec<Row> =
         serde_json::from_str(&std::fs::read_to_string(out.join("table1_seeds.json")).unwrap())
             .expect("table1_seeds.json is a list of rows");
-    let oidn = mediareg::denoise::oidn::load().is_ok();
+    let oidn = common::oidn_present();
     let mut want = vec![Method::Volpath];
     want.extend(oidn.then_some(Method::VolpathOidn));
     want.extend([

@@ -435,3 +435,22 @@ pub fn largest_relative_difference(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
         .map(|(x, y)| (x - y).abs() / x.abs().max(y.abs()).max(1e-3))
         .fold(0.0f32, f32::max)
 }
+
+/// Whether OIDN loads, for tests whose assertions cover the OIDN baselines. The test
+/// command fetches it (`scripts/fetch_oidn`), so a missing library is a broken set-up:
+/// it fails here, naming the fix, unless `MEDIAREG_NO_OIDN=1` asks on purpose for the
+/// run without it (then the caller checks what remains, and says so).
+pub fn oidn_present() -> bool {
+    match mediareg::denoise::oidn::load() {
+        Ok(_) => true,
+        Err(e) => {
+            assert!(
+                std::env::var_os("MEDIAREG_NO_OIDN").is_some(),
+                "OIDN does not load ({e}); run scripts/fetch_oidn (scripts/test does), or set \
+                 MEDIAREG_NO_OIDN=1 to run without the OIDN baselines on purpose"
+            );
+            eprintln!("MEDIAREG_NO_OIDN is set: the OIDN baselines' assertions are left out");
+            false
+        }
+    }
+}
