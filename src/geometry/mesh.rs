@@ -55,13 +55,18 @@ const MIN_BYTES_PER_TRIANGLE: u64 = 12 + 16 + 4 + 12;
 const MIN_BYTES_PER_VERTEX: u64 = 16 + 16;
 
 /// Refuses, before anything is read, a mesh of `triangles` and `vertices` whose arrays
-/// alone would not fit in the memory this machine has available (Linux's MemAvailable),
+/// alone would not fit in `available` bytes (the readers pass [`available_memory`]),
 /// instead of letting the machine swap; passes where that is not known.
-pub(super) fn check_fits(path: &Path, triangles: u64, vertices: u64) -> Result<()> {
+pub(super) fn check_fits(
+    path: &Path,
+    triangles: u64,
+    vertices: u64,
+    available: Option<u64>,
+) -> Result<()> {
     let need = triangles
         .saturating_mul(MIN_BYTES_PER_TRIANGLE)
         .saturating_add(vertices.saturating_mul(MIN_BYTES_PER_VERTEX));
-    let Some(available) = available_memory() else {
+    let Some(available) = available else {
         return Ok(());
     };
     if need <= available {
@@ -79,7 +84,7 @@ pub(super) fn check_fits(path: &Path, triangles: u64, vertices: u64) -> Result<(
 }
 
 /// MemAvailable of /proc/meminfo in bytes (None off Linux or where it is not readable).
-fn available_memory() -> Option<u64> {
+pub(super) fn available_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;

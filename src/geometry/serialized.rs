@@ -111,7 +111,12 @@ pub fn read_serialized(path: &Path, shape_index: u32) -> Result<RawMesh> {
             "{vertex_count} vertices and {face_count} triangles cannot fit in this file (corrupt counts)"
         )));
     }
-    super::mesh::check_fits(path, face_count, vertex_count)?;
+    super::mesh::check_fits(
+        path,
+        face_count,
+        vertex_count,
+        super::mesh::available_memory(),
+    )?;
     let (nv, nf) = (vertex_count as usize, face_count as usize);
 
     let vec3 = |c: [f32; 3]| Vec3A::from_array(c);

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use glam::{Vec2, Vec3A};
 
-use super::mesh::{check_fits, mesh_error, RawMesh, Triangulator};
+use super::mesh::{available_memory, check_fits, mesh_error, RawMesh, Triangulator};
 use crate::error::Result;
 use source::Source;
 
@@ -275,6 +275,11 @@ impl Plan {
 /// Reads a PLY file (ASCII or binary): vertex x, y, z and optional nx, ny, nz and texture
 /// coordinates; faces from `vertex_indices` (or `vertex_index`), polygons fan-triangulated.
 pub fn read_ply(path: &Path) -> Result<RawMesh> {
+    read_ply_within(path, available_memory())
+}
+
+/// [`read_ply`], refusing a mesh whose arrays would not fit in `available` bytes.
+fn read_ply_within(path: &Path, available: Option<u64>) -> Result<RawMesh> {
     let mut src =
         Source::open(path).map_err(|e| mesh_error(path, format!("cannot open PLY file: {e}")))?;
     let header = read_header(&mut src).map_err(|e| mesh_error(path, e))?;
@@ -306,7 +311,7 @@ pub fn read_ply(path: &Path) -> Result<RawMesh> {
         sum.saturating_add(e.count.saturating_mul(e.min_bytes(ascii)))
     });
     if declared <= src.remaining() {
-        check_fits(path, n_faces, n_vertices)?;
+        check_fits(path, n_faces, n_vertices, available)?;
     }
     for (e, roles) in header.elements.iter().zip(&plan.roles) {
         let keep = roles.iter().any(|r| *r != Role::Skip);
