@@ -213,6 +213,10 @@ fn measure_false_alarms_and_power() {
         Err(_) => CASES.iter().map(|&(n, s, _)| (n.to_string(), s)).collect(),
     };
     let k = SEEDS as usize;
+    assert!(
+        seeds as usize >= k,
+        "NEVER_LOSES_SEEDS={seeds}: the subsets are of {k} seeds, so at least {k} are needed"
+    );
     println!("| scene | spp | MSE plain | MSE OIDN | OIDN ÷ plain (min–max over seeds) | OIDN kept | regularize ÷ better | false alarms (subsets) | (disjoint groups) | power always plain | always OIDN |");
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (name, spp) in cases {

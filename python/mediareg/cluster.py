@@ -12,6 +12,9 @@ Each chunk is one Ray task: ``mediareg.render`` of spp/chunks samples with its o
 distribution, with the variance of the mean from the chunks' spread. Every node must
 see the scene and its meshes at the same path (a shared file system, or the same
 checkout), and have this package installed.
+
+``backward`` does the same for reverse mode over many views: one task per view, the
+per-view gradients summed on the driver (``mediareg.backward``'s arrays; a sum, so exact).
 """
 
 import os
@@ -69,6 +72,52 @@ def render(scene_path, spp, chunks, seed=0, out=None, search_path=None,
     merged["seeds"] = seeds
     merged["seconds"] = time.perf_counter() - t0
     return merged
+
+
+def _backward_view(scene_path, scene_params, search_path, sensor, adjoint, params, medium,
+                   spp, seed, threads):
+    scene = mediareg.load_file(scene_path, search_path=search_path, sensor=sensor,
+                               **scene_params)
+    return mediareg.backward(scene, adjoint, params=params, medium=medium, spp=spp,
+                             seed=seed, threads=threads)
+
+
+def backward(scene_path, views, params=None, medium=None, spp=None, seed=0,
+             search_path=None, threads_per_view=1, scene_params=None):
+    """The gradient of L = sum over views of sum(A_k * I_k) in a grid medium's values:
+    ``views`` is a list of ``(sensor, adjoint)`` pairs (the sensor's index in the file,
+    the adjoint image dL/dI for that view, (height, width, 3) float32), each one Ray task
+    of ``mediareg.backward`` on the scene built for that sensor, view k at seed
+    ``seed + k``. The driver sums the per-view gradients in view order: the merge is
+    exact, the same sum a loop over ``mediareg.backward`` on one machine makes.
+
+    Returns a dict: one float32 array per parameter (as ``mediareg.backward``),
+    ``seeds`` and ``seconds`` (wall-clock time, the tasks and the sum).
+    """
+    import ray  # only here: the rest of mediareg does not need ray
+
+    scene_params = dict(scene_params or {})
+    scene_path = os.path.abspath(scene_path)
+    search = None if search_path is None else [os.path.abspath(p) for p in search_path]
+    if not views:
+        raise ValueError("views: need at least one (sensor, adjoint) pair")
+    # A bad scene or sensor fails here, on the driver, with the loader's message.
+    for sensor in sorted({s for s, _ in views}):
+        mediareg.load_file(scene_path, search_path=search, sensor=sensor, **scene_params)
+    seeds = [seed + k for k in range(len(views))]
+    task = ray.remote(num_cpus=threads_per_view)(_backward_view)
+    t0 = time.perf_counter()
+    refs = [task.remote(scene_path, scene_params, search, sensor, adjoint, params, medium,
+                        spp, s, threads_per_view)
+            for (sensor, adjoint), s in zip(views, seeds)]
+    grads = ray.get(refs)
+    total = {name: grads[0][name].copy() for name in grads[0]}
+    for g in grads[1:]:
+        for name in total:
+            total[name] += g[name]
+    total["seeds"] = seeds
+    total["seconds"] = time.perf_counter() - t0
+    return total
 
 
 def _reference_script(script):

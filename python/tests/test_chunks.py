@@ -141,3 +141,26 @@ def test_ray_mitsuba_reference_equals_the_script(local_ray, tmp_path):
         assert sorted(meta["images_sha256"]) == ["cbox.exr", "cbox_var.exr"], folder
         for f, want in meta["images_sha256"].items():
             assert hashlib.sha256((tmp_path / folder / f).read_bytes()).hexdigest() == want, f
+
+
+def test_ray_backward_over_views_is_the_sum_of_each_views_gradient(local_ray):
+    # The tutorial's scene: 5 sensors; three views, one a repeat of sensor 0 with another
+    # adjoint. One thread a view, so each view's gradient is deterministic and the
+    # driver's sum in view order is the local loop's to the bit.
+    path = scene("volume_opt/volume_opt")
+    rng = np.random.default_rng(5)
+    views = [(s, rng.uniform(0.0, 1.0, (64, 64, 3)).astype(np.float32)) for s in (0, 3, 0)]
+    g = mediareg.cluster.backward(path, views, params=["sigma_t"], spp=2, seed=7)
+    assert g["seeds"] == [7, 8, 9]
+    want = None
+    for (sensor, adjoint), s in zip(views, g["seeds"]):
+        one = mediareg.backward(mediareg.load_file(path, sensor=sensor), adjoint,
+                                params=["sigma_t"], spp=2, seed=s, threads=1)["sigma_t"]
+        assert np.abs(one).max() > 0, "a view with no gradient tests nothing"
+        want = one.copy() if want is None else want + one
+    assert np.array_equal(g["sigma_t"], want)
+    # Power: a view left out changes the sum.
+    two = mediareg.cluster.backward(path, views[:2], params=["sigma_t"], spp=2, seed=7)
+    assert not np.array_equal(two["sigma_t"], want)
+    with pytest.raises(mediareg.SceneError):
+        mediareg.cluster.backward(path, [(9, views[0][1])], spp=2)
