@@ -224,6 +224,27 @@ fn hard_grids_stay_finite() {
     }
 }
 
+/// Mitsuba 3's derivatives of the grid scene (reference/derivatives/grid_adjoint.json,
+/// scripts/grid_adjoint_references).
+fn mitsuba_derivatives() -> serde_json::Value {
+    let text =
+        std::fs::read_to_string(root().join("reference/derivatives/grid_adjoint.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+/// One of its estimates as (mean, standard error, degrees of freedom): over its own
+/// seeds where it names them (finite differences), else over reverse mode's.
+fn mitsuba_estimate(m: &serde_json::Value, reference: &serde_json::Value) -> (f64, f64, f64) {
+    let seeds = m["seeds"]
+        .as_f64()
+        .unwrap_or_else(|| reference["ad"]["seeds"].as_f64().unwrap());
+    (
+        m["mean"].as_f64().unwrap(),
+        m["se"].as_f64().unwrap(),
+        seeds - 1.0,
+    )
+}
+
 /// Where the density is 0 (a box of empty voxels, V its indicator), the adjoint's
 /// ⟨∇L, V⟩ agrees with the one-sided Richardson difference 2 D(h/2) − D(h),
 /// D(h) = (L(x + hV) − L(x)) / h, of mediareg's renders (the same seed at each point)
@@ -283,19 +304,10 @@ fn empty_voxels_get_their_in_scattering_gradient() {
     assert!(ok, "adjoint {ad:?} vs FD {fdv:?}: t = {t}");
     // Mitsuba 3's one-sided difference along the same voxels agrees; its prbvolpath
     // gradient, which has delta tracking's support, does not (the file's notes).
-    let text =
-        std::fs::read_to_string(root().join("reference/derivatives/grid_adjoint.json")).unwrap();
-    let reference: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let reference = mitsuba_derivatives();
     let zero = &reference["params"]["sigma_t"]["one_sided"]["zero"];
-    let est = |m: &serde_json::Value, n: f64| {
-        (
-            m["mean"].as_f64().unwrap(),
-            m["se"].as_f64().unwrap(),
-            n - 1.0,
-        )
-    };
-    let mitsuba_fd = est(&zero["fd"], zero["fd"]["seeds"].as_f64().unwrap());
-    let mitsuba_ad = est(&zero["ad"], reference["ad"]["seeds"].as_f64().unwrap());
+    let mitsuba_fd = mitsuba_estimate(&zero["fd"], &reference);
+    let mitsuba_ad = mitsuba_estimate(&zero["ad"], &reference);
     let (t, ok) = agree(ad, mitsuba_fd);
     eprintln!(
         "empty voxels: Mitsuba FD {:.5e} ± {:.1e}, t {t:.2}",
@@ -325,9 +337,7 @@ fn empty_voxels_get_their_in_scattering_gradient() {
 /// (at least four of the twelve).
 #[test]
 fn directional_derivatives_agree_with_mitsuba() {
-    let text =
-        std::fs::read_to_string(root().join("reference/derivatives/grid_adjoint.json")).unwrap();
-    let reference: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let reference = mitsuba_derivatives();
     let fields = ["smooth", "box", "noise"];
     // The fields are signed, which a volume may not be: their data read as it lies.
     let v: Vec<Vec<f32>> = fields
@@ -357,15 +367,7 @@ fn directional_derivatives_agree_with_mitsuba() {
             let r = &reference["params"][param]["fields"][field];
             let ours = with_dof(&ours[k][i]);
             for method in ["fd", "ad"] {
-                let m = &r[method];
-                let n = m["seeds"]
-                    .as_f64()
-                    .unwrap_or(reference["ad"]["seeds"].as_f64().unwrap());
-                let theirs = (
-                    m["mean"].as_f64().unwrap(),
-                    m["se"].as_f64().unwrap(),
-                    n - 1.0,
-                );
+                let theirs = mitsuba_estimate(&r[method], &reference);
                 let (t, ok) = agree(ours, theirs);
                 eprintln!("{param} {field}: mediareg {:.5e} ± {:.1e}, Mitsuba {method} {:.5e} ± {:.1e}, t {t:.2}", ours.0, ours.1, theirs.0, theirs.1);
                 assert!(ok, "{param} along {field}: mediareg {ours:?} vs Mitsuba {method} {theirs:?}: t = {t}");

@@ -104,17 +104,20 @@ fn a_top_level_medium_is_named_by_id_and_by_the_slot_that_holds_it() {
     }
 }
 
+/// Two shapes with media in their interior slot: a cube with the id `box`, a sphere
+/// without an id.
+fn box_and_unnamed_sphere() -> String {
+    format!(
+        r#"<shape type="cube" id="box"><bsdf type="null"/><medium type="homogeneous" name="interior">{}</medium></shape>
+<shape type="sphere"><point name="center" x="3" y="0" z="0"/><bsdf type="null"/><medium type="homogeneous" name="interior">{}</medium></shape>"#,
+        medium(1.0),
+        medium(2.0)
+    )
+}
+
 #[test]
 fn a_slot_with_several_media_is_ambiguous_and_lists_them() {
-    let s = scene(
-        "ambiguous",
-        &format!(
-            r#"<shape type="cube" id="box"><bsdf type="null"/><medium type="homogeneous" name="interior">{}</medium></shape>
-<shape type="sphere"><point name="center" x="3" y="0" z="0"/><bsdf type="null"/><medium type="homogeneous" name="interior">{}</medium></shape>"#,
-            medium(1.0),
-            medium(2.0)
-        ),
-    );
+    let s = scene("ambiguous", &box_and_unnamed_sphere());
     assert_eq!(
         s.medium_index(Some("box.interior_medium")),
         Ok(interior(&s, 0))
@@ -138,15 +141,7 @@ fn a_slot_with_several_media_is_ambiguous_and_lists_them() {
 /// The command line takes the same names, and words the error with its flag.
 #[test]
 fn render_takes_mitsuba_names_for_its_medium() {
-    let path = write(
-        "cli",
-        &format!(
-            r#"<shape type="cube" id="box"><bsdf type="null"/><medium type="homogeneous" name="interior">{}</medium></shape>
-<shape type="sphere"><transform name="to_world"><scale value="0.5"/><translate x="2.5"/></transform><bsdf type="null"/><medium type="homogeneous" name="interior">{}</medium></shape>"#,
-            medium(1.0),
-            medium(2.0)
-        ),
-    );
+    let path = write("cli", &box_and_unnamed_sphere());
     let run = |name: &str| {
         let out = path.with_file_name(format!("out_{}.exr", name.replace('.', "_")));
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_mediareg"))

@@ -248,8 +248,8 @@ pub fn optimize(
     let mut iteration = 0u32;
     let mut interrupted = false;
     'stages: for stage in &s.stages {
-        adam_sigma.lr = stage.lr.unwrap_or(s.lr);
-        adam_albedo.lr = stage.lr.unwrap_or(s.lr);
+        let lr = stage.lr.unwrap_or(s.lr);
+        (adam_sigma.lr, adam_albedo.lr) = (lr, lr);
         if let Some(res) = stage.res.filter(|&r| r != grids.res) {
             grids = grids_at(scene, s, Some(res));
             set_grids(scene, s.medium, &grids);

@@ -45,6 +45,12 @@ impl Scene {
         })
     }
 
+    /// The `mi.traverse` key of shape `s`'s medium in `slot`, where the shape has an id.
+    fn traverse_key(&self, s: usize, slot: MediumSlot) -> Option<String> {
+        let id = self.shapes[s].id.as_ref()?;
+        Some(format!("{id}.{}", slot.traverse_name()))
+    }
+
     /// How messages name medium `m`: its id, else its first `mi.traverse` key, else its
     /// slot and the line of the shape that holds it.
     pub fn medium_name(&self, m: u32) -> String {
@@ -57,11 +63,8 @@ impl Scene {
                 false => format!("medium #{m} (bound to no shape)"),
             };
         };
-        let shape = &self.shapes[s];
-        match &shape.id {
-            Some(id) => format!("{id}.{}", slot.traverse_name()),
-            None => format!("{} of {}", slot.xml_name(), shape.origin),
-        }
+        self.traverse_key(s, slot)
+            .unwrap_or_else(|| format!("{} of {}", slot.xml_name(), self.shapes[s].origin))
     }
 
     /// The medium a derivative (or a method) refers to: `name` as an XML id, a slot
@@ -86,10 +89,7 @@ impl Scene {
         }
         let mut found: Vec<u32> = Vec::new();
         for (s, slot, m) in self.medium_bindings() {
-            let key = self.shapes[s]
-                .id
-                .as_ref()
-                .map(|id| format!("{id}.{}", slot.traverse_name()));
+            let key = self.traverse_key(s, slot);
             if (n == slot.xml_name() || key.as_deref() == Some(n)) && !found.contains(&m) {
                 found.push(m);
             }
