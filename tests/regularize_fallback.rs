@@ -1,5 +1,6 @@
-//! Issue 41, item 5: with one frame and OIDN, `regularize` is plain volpath, through OIDN
-//! where the check of `regularize::fallback` finds that OIDN lowers the error. The check
+//! Issue 41, item 5: with one frame, OIDN and `--oidn-check`, `regularize` is plain
+//! volpath, through OIDN where the check of `regularize::fallback` finds that OIDN lowers
+//! the error (without `--oidn-check` it is `render --denoise oidn`, the last test). The check
 //! must keep plain volpath where OIDN raises the error (a camera in a medium, a
 //! max_depth cut-off, the furnace) and keep OIDN where it lowers it (a chromatic sphere, a
 //! medium in glass, a mesh, the cloud), each verified against the scene's Mitsuba 3
@@ -18,6 +19,7 @@ use common::{load_seeded, root};
 fn one_frame(scene: &mediareg::scene::Scene) -> regularize::Regularized {
     let c = Choices {
         frames: 1,
+        oidn_check: true,
         ..Default::default()
     };
     let (opts, shot) = choices::options(scene, &scene.shot, &c).unwrap();
@@ -135,4 +137,35 @@ fn above_the_check_one_frame_is_the_plain_render_of_all_its_samples() {
     );
     let oidn = common::largest_relative_difference(&out.predicted.pixels, &d.pixels);
     assert!(oidn < 1e-4, "the OIDN image differs by {oidn} (relative)");
+}
+
+/// Without `--oidn-check` (the default) one frame is `render --denoise oidn`, bit for bit,
+/// above the check's spp too, and where the check would keep plain volpath (a camera in
+/// a medium, OIDN 25-30x plain's error at 128 spp): no check runs. Seen failing with the
+/// check left on by default (the plain image came back).
+#[test]
+fn without_the_check_one_frame_is_render_denoise_oidn() {
+    let scene = load_seeded(
+        &root().join("mitsuba_scenes/camera_in_medium.xml"),
+        &[],
+        128,
+        5,
+    );
+    let c = Choices {
+        frames: 1,
+        ..Default::default()
+    };
+    let (opts, shot) = choices::options(&scene, &scene.shot, &c).unwrap();
+    let out = regularize::regularize(&scene, &shot, &opts).unwrap();
+    assert!(out.oidn_check.is_none(), "no check without --oidn-check");
+    let (plain, d) = common::plain_and_oidn_at(&scene, &scene.shot);
+    let bits = |p: &[[f32; 3]]| p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert!(
+        bits(&out.source.pixels) == bits(&plain.pixels),
+        "the plain render"
+    );
+    assert!(
+        bits(&out.predicted.pixels) == bits(&d.pixels),
+        "its image differs from render --denoise oidn's"
+    );
 }

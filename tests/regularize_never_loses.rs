@@ -1,5 +1,5 @@
-//! Issue 57, item 3: `regularize --frames 1` (plain volpath, through OIDN where
-//! `regularize::fallback`'s check says so) never loses to the better of plain volpath and
+//! Issue 57, item 3: `regularize --frames 1 --oidn-check` (plain volpath, through OIDN
+//! where `regularize::fallback`'s check says so) never loses to the better of plain volpath and
 //! plain volpath through OIDN (`render --denoise oidn`) at the same spp, asserted on
 //! three small scenes: one where OIDN loses by far (camera_in_medium), one where it loses
 //! by about 2× (max_depth_directional) and one where it wins (the medium cube).
@@ -74,6 +74,7 @@ fn errors(name: &str, spp: u32, seed: u64) -> Errors {
     let err = |img: &mediareg::image::Image| mse_against(img, &reference, &var).1;
     let c = Choices {
         frames: 1,
+        oidn_check: true,
         ..Default::default()
     };
     let (opts, shot) = choices::options(&scene, &scene.shot, &c).unwrap();

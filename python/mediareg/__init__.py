@@ -85,7 +85,7 @@ def render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, me
         threads=threads,
         gradient=gradient,
         medium=medium,
-        denoise=denoise,
+        denoise=denoise, pick=pick, oidn_check=oidn_check,
     )
 
 
@@ -106,13 +106,14 @@ def denoise(color, albedo=None, normal=None, clean_aux=True):
 def regularize(scene, spp=None, seed=0, threads=None, medium=None, predict="difference",
                factor=None, pilot_renders=8, pilot_spp=1, c_beta=0.5, fit_spp=4, fit_at=1.0,
                frames=11, wa=0.1, reproject="exact", orbit=None, target=None, dolly=None,
-               camera_path=None, spatial=None, denoise=None):
+               camera_path=None, spatial=None, denoise=None, pick=True, oidn_check=False):
     """The paper's method, as ``mediareg regularize`` with the same options (keywords
     named after its flags; ``factor``: a number or "auto", None the CLI's default;
     ``c_beta``: a number or "fit"; ``target``: the orbit's centre (x, y, z); ``spatial``:
     True/False, None the predictor's default; ``predict``: also "plain", the control;
     ``denoise``: "oidn" or "bilateral", None the CLI's default: oidn when the library is
-    there). Returns a dict of float32 (H, W, 3)
+    there; ``pick``: False as ``--no-pick``; ``oidn_check``: True as ``--oidn-check``).
+    Returns a dict of float32 (H, W, 3)
     arrays ``predicted``, ``source``, ``dalbedo_raw``, ``dalbedo`` (the CLI's OUT.exr,
     OUT_source.exr, OUT_dalbedo_raw.exr, OUT_dalbedo.exr) and ``albedo_source``,
     ``albedo_target``, ``factor`` (the pilot's, per channel, or None), ``c_beta``,

@@ -19,12 +19,12 @@ use crate::{bad_arg, param_text, PyScene, SceneError};
 /// regularize(scene, spp=None, seed=0, threads=None, medium=None, predict="difference",
 /// factor=None, pilot_renders=8, pilot_spp=1, c_beta=0.5, fit_spp=4, fit_at=1.0,
 /// frames=11, wa=0.1, reproject="exact", orbit=None, target=None, dolly=None,
-/// camera_path=None, spatial=None, denoise=None, pick=True)
+/// camera_path=None, spatial=None, denoise=None, pick=True, oidn_check=False)
 #[pyfunction]
 #[pyo3(signature = (scene, spp=None, seed=0, threads=None, medium=None, predict="difference",
     factor=None, pilot_renders=8, pilot_spp=1, c_beta=None, fit_spp=4, fit_at=1.0, frames=11,
     wa=0.1, reproject="exact", orbit=None, target=None, dolly=None, camera_path=None,
-    spatial=None, denoise=None, pick=true))]
+    spatial=None, denoise=None, pick=true, oidn_check=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn regularize<'py>(
     py: Python<'py>,
@@ -50,6 +50,7 @@ pub fn regularize<'py>(
     spatial: Option<bool>,
     denoise: Option<&str>,
     pick: bool,
+    oidn_check: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let data = Arc::clone(&scene.get().inner);
     if spp == Some(0) {
@@ -147,6 +148,7 @@ pub fn regularize<'py>(
         spatial,
         oidn,
         pick,
+        oidn_check,
         show_progress: false,
     };
     let shot = data.shot.with(spp.unwrap_or(data.shot.spp), seed);

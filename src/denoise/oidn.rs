@@ -104,14 +104,34 @@ struct Api {
 /// the mutex around it.
 pub struct Oidn {
     api: Api,
-    device: Mutex<Handle>,
+    device: Mutex<Device>,
     version: i32,
     path: PathBuf,
     // Kept loaded while `api` points into them (TBB first, OIDN after).
     _libs: Vec<Library>,
 }
 
-// The device handle is used only under the mutex; OIDN's API is thread-safe.
+/// The device and the last filter it ran, kept for the next image of the same layout:
+/// committing an `RT` filter builds its network, which costs about as much as running
+/// it on a small image, and a second commit with only the images' addresses changed
+/// builds nothing (OIDN rebuilds where a size, format or the set of images changes).
+struct Device {
+    handle: Handle,
+    filter: Option<(FilterLayout, Handle)>,
+}
+
+/// What a filter's network depends on.
+#[derive(Clone, Copy, PartialEq)]
+struct FilterLayout {
+    width: usize,
+    height: usize,
+    albedo: bool,
+    normal: bool,
+    clean: bool,
+}
+
+// The device and filter handles are used only under the mutex; OIDN's API is
+// thread-safe.
 unsafe impl Send for Oidn {}
 unsafe impl Sync for Oidn {}
 
@@ -220,11 +240,14 @@ fn open(path: Option<&Path>) -> Result<Oidn, OidnError> {
     let oidn = Oidn {
         version: unsafe { (api.get_device_1i)(device, c"version".as_ptr()) },
         api,
-        device: Mutex::new(device),
+        device: Mutex::new(Device {
+            handle: device,
+            filter: None,
+        }),
         path: path.map_or_else(|| PathBuf::from(shown.clone()), Path::to_path_buf),
         _libs: libs,
     };
-    oidn.check(&oidn.device.lock().unwrap_or_else(|e| e.into_inner()))?;
+    oidn.check(oidn.device.lock().unwrap_or_else(|e| e.into_inner()).handle)?;
     if !VERSION_RANGE.contains(&oidn.version) {
         return Err(OidnError::WrongLibrary(format!(
             "{shown} is Open Image Denoise {}",
@@ -281,10 +304,10 @@ impl Oidn {
         &self.path
     }
 
-    fn check(&self, device: &Handle) -> Result<(), OidnError> {
+    fn check(&self, device: Handle) -> Result<(), OidnError> {
         let mut msg: *const c_char = std::ptr::null();
         // SAFETY: the device is valid; OIDN owns the message string.
-        let code = unsafe { (self.api.get_device_error)(*device, &mut msg) };
+        let code = unsafe { (self.api.get_device_error)(device, &mut msg) };
         if code == 0 {
             return Ok(());
         }
@@ -355,16 +378,34 @@ impl Oidn {
             return Ok(Vec::new());
         }
         let mut output = vec![[0f32; 3]; n];
-        let device = self.device.lock().unwrap_or_else(|e| e.into_inner());
+        let layout = FilterLayout {
+            width,
+            height,
+            albedo: aux.is_some(),
+            normal: aux.is_some_and(|a| a.normal.is_some()),
+            clean: aux.is_some_and(|a| a.clean),
+        };
+        let mut device = self.device.lock().unwrap_or_else(|e| e.into_inner());
         let api = &self.api;
-        // SAFETY: every image outlives the filter's execution (released below), each
-        // is n packed float3 pixels as described, and the device is held locked.
+        // SAFETY: every image outlives the filter's execution (the filter keeps their
+        // addresses afterwards but is given new ones before it runs again), each is n
+        // packed float3 pixels as described, and the device is held locked.
         unsafe {
-            let filter = (api.new_filter)(*device, c"RT".as_ptr());
-            if filter.is_null() {
-                self.check(&device)?;
-                return Err(OidnError::Failed("no RT filter".into()));
-            }
+            let filter = match device.filter {
+                Some((kept, filter)) if kept == layout => filter,
+                _ => {
+                    if let Some((_, old)) = device.filter.take() {
+                        (api.release_filter)(old);
+                    }
+                    let filter = (api.new_filter)(device.handle, c"RT".as_ptr());
+                    if filter.is_null() {
+                        self.check(device.handle)?;
+                        return Err(OidnError::Failed("no RT filter".into()));
+                    }
+                    device.filter = Some((layout, filter));
+                    filter
+                }
+            };
             let share = |name: &CString, img: *mut c_void| {
                 (api.set_shared_filter_image)(
                     filter,
@@ -391,12 +432,17 @@ impl Oidn {
             (api.set_filter_1b)(filter, c"hdr".as_ptr(), true);
             (api.set_filter_1f)(filter, c"inputScale".as_ptr(), input_scale);
             (api.commit_filter)(filter);
-            let committed = self.check(&device);
+            let committed = self.check(device.handle);
             if committed.is_ok() {
                 (api.execute_filter)(filter);
             }
-            let executed = self.check(&device);
-            (api.release_filter)(filter);
+            let executed = self.check(device.handle);
+            if committed.is_err() || executed.is_err() {
+                // A filter in an error state is not kept for the next image.
+                if let Some((_, f)) = device.filter.take() {
+                    (api.release_filter)(f);
+                }
+            }
             committed.and(executed)?;
         }
         if output.iter().flatten().any(|v| !v.is_finite()) {

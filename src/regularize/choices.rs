@@ -54,6 +54,9 @@ pub struct Choices {
     /// Pick the frame's pipeline by `pick`'s check (where it applies: the difference
     /// predictor through OIDN, more than one frame).
     pub pick: bool,
+    /// With one frame through OIDN: check whether OIDN lowers the error, and keep plain
+    /// volpath where it does not (`Options::oidn_check`).
+    pub oidn_check: bool,
     pub show_progress: bool,
 }
 
@@ -71,6 +74,7 @@ impl Default for Choices {
             spatial: None,
             oidn: None,
             pick: true,
+            oidn_check: false,
             show_progress: false,
         }
     }
@@ -163,6 +167,7 @@ pub fn options(scene: &Scene, shot: &Shot, c: &Choices) -> Result<(Options, Shot
         auto_factor,
         method: c.method,
         pick: c.pick && difference && oidn && c.frames > 1,
+        oidn_check: c.oidn_check,
         show_progress: c.show_progress,
     };
     Ok((options, target_shot))

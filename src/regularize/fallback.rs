@@ -114,6 +114,29 @@ fn measure(o: &Image, m: &Image, a: &Image, b: &Image) -> (f64, f64, f64) {
     (var_sum / n, mean_block * k / n, (k * var_block).sqrt() / n)
 }
 
+/// `shot` rendered plain and through OIDN, without a check: `render --denoise oidn`'s
+/// image, bit for bit, at its cost.
+pub fn through_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> {
+    let options = RenderOptions {
+        seen_emission: true,
+        ..Default::default()
+    };
+    let r = render(scene, shot, &options);
+    let started = Instant::now();
+    let mut e = seen(&r).clone();
+    aovs::sharpen_seen_emission(scene, shot, &mut e);
+    let image = denoise::oidn(&r.image, Some(&e), None, AuxUse::None)?;
+    Ok(Fallback {
+        image,
+        plain: r.image,
+        seen_emission: e,
+        check: None,
+        render_seconds: r.stats.seconds,
+        denoise_seconds: started.elapsed().as_secs_f64(),
+        invalid_samples: r.stats.invalid_samples,
+    })
+}
+
 /// `shot` (N = `shot.spp`) rendered plain and through OIDN where (F3) holds (always
 /// through OIDN below `MIN_CHECK_SPP`).
 pub fn plain_or_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> {
@@ -128,19 +151,7 @@ pub fn plain_or_oidn(scene: &Scene, shot: &Shot) -> Result<Fallback, OidnError> 
         e
     };
     if n < MIN_CHECK_SPP || p == 0 {
-        let r = render(scene, shot, &options);
-        let started = Instant::now();
-        let e = sharpened(seen(&r).clone());
-        let image = denoise::oidn(&r.image, Some(&e), None, AuxUse::None)?;
-        return Ok(Fallback {
-            image,
-            plain: r.image,
-            seen_emission: e,
-            check: None,
-            render_seconds: r.stats.seconds,
-            denoise_seconds: started.elapsed().as_secs_f64(),
-            invalid_samples: r.stats.invalid_samples,
-        });
+        return through_oidn(scene, shot);
     }
     // M, A and B are the samples 0..N − 2p, N − 2p..N − p and N − p..N of the shot's
     // own streams: together they are `render`'s N spp, stratified as one.

@@ -84,6 +84,10 @@ pub struct Options {
     /// plain + OIDN, plain) by `pick`'s check; with the difference predictor, OIDN on
     /// every frame and more than one frame only (else ignored).
     pub pick: bool,
+    /// One plain frame through OIDN (`frames` 1): keep plain volpath where `fallback`'s
+    /// check finds that OIDN raises the error. Off, the frame is `render --denoise
+    /// oidn`'s image and costs what it costs; on, the check costs one more OIDN run.
+    pub oidn_check: bool,
     pub show_progress: bool,
 }
 
@@ -101,6 +105,7 @@ impl Default for Options {
             method: Method::Paper(CBeta::Fixed(0.5)),
             auto_factor: None,
             pick: false,
+            oidn_check: false,
             show_progress: false,
         }
     }

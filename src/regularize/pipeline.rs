@@ -193,7 +193,11 @@ fn one_plain_frame(opts: &Options) -> bool {
 /// `fallback`'s check finds that OIDN lowers the error; the gradients are zero.
 fn plain_frame(scene: &Scene, shot: &Shot, opts: &Options) -> Result<Regularized, RegularizeError> {
     let medium = &scene.media[opts.medium as usize];
-    let f = fallback::plain_or_oidn(scene, shot).map_err(RegularizeError::Denoise)?;
+    let f = match opts.oidn_check {
+        true => fallback::plain_or_oidn(scene, shot),
+        false => fallback::through_oidn(scene, shot),
+    }
+    .map_err(RegularizeError::Denoise)?;
     let zeros = Image {
         pixels: vec![[0.0; 3]; f.plain.pixels.len()],
         ..f.plain.clone()

@@ -179,6 +179,7 @@ pub fn sequence_options(
         method: regularize::Method::Paper(CBeta::Fixed(opts.c_beta)),
         auto_factor: None,
         pick: false,
+        oidn_check: false,
         show_progress: false,
     }
 }
@@ -573,8 +574,8 @@ fn run_still_baselines(
 }
 
 /// The default row in the still accounting: what `regularize --frames 1` makes of the
-/// whole time (one plain frame, through OIDN where `regularize::fallback`'s check finds
-/// it lowers the error), charged all it spends. With OIDN only: without it the one
+/// whole time (one plain frame through OIDN, `render --denoise oidn`'s image), charged
+/// all it spends. With OIDN only: without it the one
 /// frame is the bilateral pipeline, which no still baseline uses.
 fn run_still_regularized(
     ctx: &SceneRun,
@@ -596,21 +597,9 @@ fn run_still_regularized(
         oidn: regularize::OidnUse::Frames,
         ..Default::default()
     };
-    // The check's second OIDN run comes out of the time too.
-    let spp = spp_for(total - 2.0 * t_oidn, per_spp);
+    let spp = spp_for(total - t_oidn, per_spp);
     let shot = ctx.scene.shot.with(spp, ctx.seed.wrapping_add(30));
     let r = regularize::regularize(&ctx.scene, &shot, &options).map_err(|e| anyhow!("{e}"))?;
-    if let Some(c) = &r.oidn_check {
-        run.notes.push(format!(
-            "{} seed {} regularized (still, one frame): {}",
-            ctx.name,
-            ctx.seed,
-            match c.chose_oidn {
-                true => "plain volpath through OIDN",
-                false => "plain volpath, OIDN raised the error",
-            }
-        ));
-    }
     let t = &r.timings;
     let out = MethodImage::baseline(
         Method::Regularized,

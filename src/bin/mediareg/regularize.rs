@@ -92,6 +92,11 @@ pub struct RegularizeArgs {
     /// through OIDN and more than one frame; see docs/regularize.md).
     #[arg(long)]
     pub no_pick: bool,
+    /// With --frames 1 through OIDN: check on the render's own samples whether OIDN
+    /// lowers the error, and keep plain volpath where it does not (one more OIDN run;
+    /// see docs/regularize.md). Without it the frame is `render --denoise oidn`'s.
+    #[arg(long)]
+    pub oidn_check: bool,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -139,6 +144,7 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
         denoise,
         predict,
         no_pick,
+        oidn_check,
         pilot_renders,
         pilot_spp,
     } = cmd;
@@ -202,6 +208,7 @@ pub fn run(cmd: RegularizeArgs) -> Result<()> {
             (None, false) => None,
         },
         pick: !no_pick,
+        oidn_check,
         show_progress: std::io::stderr().is_terminal(),
     };
     let (opts, shot) = regularize::choices::options(&scene_data, &scene_data.shot, &choices)
