@@ -447,6 +447,33 @@ fn render_with_derivatives(
     (rendered, derivs)
 }
 
+/// The estimate's covariance s² C⁻¹ from the curvature C, over the directions C
+/// determines, and which unknowns take part in a direction it does not: an eigenvalue
+/// at most `UNDETERMINED` × the largest (not clearly positive: render noise makes an
+/// exact zero a small number of either sign).
+fn covariance(curvature: &DMatrix<f64>, s2: f64) -> (DMatrix<f64>, Vec<bool>) {
+    let k = curvature.nrows();
+    let eig = curvature.clone().symmetric_eigen();
+    let top = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
+    let mut cov = DMatrix::<f64>::zeros(k, k);
+    let mut undetermined = vec![false; k];
+    for (n, &l) in eig.eigenvalues.iter().enumerate() {
+        let v = eig.eigenvectors.column(n);
+        if l <= UNDETERMINED * top.max(1e-300) {
+            for i in 0..k {
+                undetermined[i] |= v[i].abs() > 1e-3;
+            }
+            continue;
+        }
+        cov += (v * v.transpose()) * (s2 / l);
+    }
+    (cov, undetermined)
+}
+
+/// A curvature eigenvalue at most this share of the largest is a direction the images do
+/// not determine.
+const UNDETERMINED: f64 = 1e-9;
+
 /// 95% intervals at `x` from two renders at fresh seeds: s² (J₁ᵀJ₂)⁻¹ (the module
 /// comment), mapped through each unknown's coordinate.
 fn intervals(
@@ -474,21 +501,7 @@ fn intervals(
     // The estimate is the mean of the averaged iterates, each from renders at the
     // iteration's samples; its noise is bounded by one iteration's: s² at that spp.
     let s2 = s2 * CI_SPP_FACTOR as f64;
-    let eig = cross.clone().symmetric_eigen();
-    // Directions whose curvature is not clearly positive are not determined.
-    let top = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
-    let mut cov = DMatrix::<f64>::zeros(k, k);
-    let mut undetermined = vec![false; k];
-    for (n, &l) in eig.eigenvalues.iter().enumerate() {
-        let v = eig.eigenvectors.column(n);
-        if l <= 1e-9 * top.max(1e-300) {
-            for i in 0..k {
-                undetermined[i] |= v[i].abs() > 1e-3;
-            }
-            continue;
-        }
-        cov += (v * v.transpose()) * (s2 / l);
-    }
+    let (cov, undetermined) = covariance(&cross, s2);
     unknowns
         .iter()
         .enumerate()
@@ -500,4 +513,42 @@ fn intervals(
             [u.from_x(x[i] - half), u.from_x(x[i] + half)]
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The slope of the least-squares line: exact on a line, 0 on a constant and on
+    /// fewer than two values.
+    #[test]
+    fn trend_is_the_least_squares_slope() {
+        let line: Vec<f64> = (0..7).map(|i| 3.0 + 0.5 * i as f64).collect();
+        assert!((trend(&line) - 0.5).abs() < 1e-12);
+        assert_eq!(trend(&[2.0; 5]), 0.0);
+        assert_eq!(trend(&[1.0]), 0.0);
+        // A reversed line flips it.
+        let rev: Vec<f64> = line.iter().rev().cloned().collect();
+        assert!((trend(&rev) + 0.5).abs() < 1e-12);
+    }
+
+    /// Determined directions get s² C⁻¹; a direction of (numerically) zero curvature
+    /// marks exactly the unknowns that take part in it (sigma_t and scale multiply, so
+    /// their curvature is [[1, 1], [1, 1]] in log coordinates), and the threshold sits
+    /// between 1e-8 and 1e-10 of the largest eigenvalue.
+    #[test]
+    fn covariance_inverts_the_determined_directions_and_marks_the_rest() {
+        let (cov, undetermined) =
+            covariance(&DMatrix::from_row_slice(2, 2, &[4.0, 0.0, 0.0, 1.0]), 2.0);
+        assert_eq!(undetermined, [false, false]);
+        assert!((cov[(0, 0)] - 0.5).abs() < 1e-12 && (cov[(1, 1)] - 2.0).abs() < 1e-12);
+        let product = DMatrix::from_row_slice(3, 3, &[1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 2.0]);
+        let (cov, undetermined) = covariance(&product, 1.0);
+        assert_eq!(undetermined, [true, true, false]);
+        assert!((cov[(2, 2)] - 0.5).abs() < 1e-12, "{}", cov[(2, 2)]);
+        for (small, marked) in [(1e-8, false), (1e-10, true)] {
+            let c = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, small]);
+            assert_eq!(covariance(&c, 1.0).1, [false, marked], "eigenvalue {small}");
+        }
+    }
 }
