@@ -6,8 +6,11 @@
 //! mediareg's are means over seeds too; each comparison is a Welch t-test of the image
 //! mean's derivative (per channel for a chromatic parameter, summed over channels for a
 //! grey one), at a per-comparison level that keeps the whole file's false-alarm
-//! probability below FALSE_ALARM (Bonferroni). Power tests: a derivative 5% off, one
-//! with its sign flipped, and one without the shadow rays' term must each fail.
+//! probability below FALSE_ALARM (Bonferroni). Power tests: a derivative 5% off (on the
+//! cube, the mesh boundary and the chromatic medium; half off on the grid, whose only
+//! reference is noisier), one with its sign flipped, and one without the shadow
+//! rays' term must each fail. Only the image mean's derivative is compared (the
+//! references hold no more).
 
 mod common;
 
@@ -230,6 +233,14 @@ fn mesh_boundary_derivatives_match_mitsuba() {
         w <= 1.0,
         "bunny_medium: a derivative differs from Mitsuba 3's ({w:.2})"
     );
+    // Power: 5% off, and the sign flipped, fail each parameter against Mitsuba's AD
+    // (measured excess 1.55-9.7 at 5%, σ_t the least).
+    for (param, ours, ad, _) in &c {
+        for factor in [1.05, 0.95, -1.0] {
+            let e = excess(ours, ad.as_ref().unwrap(), factor);
+            assert!(e > 1.0, "bunny_medium {param} × {factor} passed ({e:.2})");
+        }
+    }
 }
 
 #[test]
@@ -255,12 +266,19 @@ fn grid_scale_derivative_matches_mitsuba() {
         w <= 1.0,
         "cloud: a derivative differs from Mitsuba 3's ({w:.2})"
     );
+    // Power: half off either way, and the sign flipped. Mitsuba's finite difference is
+    // the only reference here (its reverse mode disagrees with it on this cloud,
+    // docs/gradient.md) and its standard error is 4% of the value, so at this file's
+    // false-alarm level 5% off is within its noise (excess 0.12) and so is 25% (0.98):
+    // a tighter check needs a longer reference (16 seeds of FD took most of 272 s).
     let (_, ours, _, fd) = c.iter().find(|(p, ..)| p == "scale").unwrap();
-    let e = excess(ours, fd.as_ref().unwrap(), -1.0);
-    assert!(
-        e > 1.0,
-        "the grid scale's derivative with its sign flipped passed ({e:.2})"
-    );
+    for factor in [1.5, 0.5, -1.0] {
+        let e = excess(ours, fd.as_ref().unwrap(), factor);
+        assert!(
+            e > 1.0,
+            "the grid scale's derivative × {factor} passed ({e:.2})"
+        );
+    }
 }
 
 /// The command line: a parameter the medium does not have, or that mediareg cannot

@@ -514,19 +514,30 @@ mod tests {
 
     /// The exposure passed to OIDN is its own, to its rounding: the output with it is
     /// the output OIDN's own computation gives (which differs from itself by up to 5e-5).
+    /// Power: an exposure 1% off leaves that tolerance on every size.
     #[test]
     fn the_exposure_is_oidns_own() {
         let lib = load().unwrap_or_else(|e| panic!("{e}"));
+        let within = |a: &[[f32; 3]], b: &[[f32; 3]]| {
+            a.iter()
+                .flatten()
+                .zip(b.iter().flatten())
+                .all(|(a, b)| (a - b).abs() <= 2e-4 * b.abs() + 1e-7)
+        };
         for (w, h) in [(160, 120), (37, 29), (300, 17)] {
             let color = noisy(w, h, w as u64);
             let ours = lib.denoise_rt(w, h, &color, None).unwrap();
             let oidns = lib.denoise_rt_scaled(w, h, &color, None, f32::NAN).unwrap();
-            for (a, b) in ours.iter().flatten().zip(oidns.iter().flatten()) {
-                assert!(
-                    (a - b).abs() <= 2e-4 * b.abs() + 1e-7,
-                    "{w}x{h}: {a} vs {b}"
-                );
-            }
+            assert!(
+                within(&ours, &oidns),
+                "{w}x{h}: ours differs from OIDN's own"
+            );
+            let off = 1.01 * autoexposure(w, h, &color);
+            let wrong = lib.denoise_rt_scaled(w, h, &color, None, off).unwrap();
+            assert!(
+                !within(&wrong, &oidns),
+                "{w}x{h}: an exposure 1% off passed the tolerance"
+            );
         }
         // Darker input, a larger scale: proportional, by its definition.
         let color = noisy(64, 64, 3);
