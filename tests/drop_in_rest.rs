@@ -777,3 +777,72 @@ fn alpha_comparison_detects_sigma_t_and_radius_off() {
         "the radius 2% off went unnoticed in path's alpha: {c}"
     );
 }
+
+/// The uint32 quantizer against a file Mitsuba 3 wrote (tests/fixtures/film, made by
+/// scripts/make_uint32_fixture.py: chosen float values, negative, tiny, near and above
+/// 1, through Mitsuba's `Bitmap::convert` to uint32): `quantize_uint32` gives Mitsuba's
+/// samples exactly where Mitsuba's ordered dither cannot move them (values of 2^-8 and
+/// more, and those it clamps) and within one step below; `read_exr` reads Mitsuba's
+/// file as Mitsuba reads it. Seen failing with the clamp at 2^32 − 1 (Mitsuba's top is
+/// 4294967040, the largest f32 below 2^32). (Rounding by truncation would pass: v · 2^32
+/// in f32 is an integer from 2^-9 up, so the rounding mode shows only under the dither.)
+#[test]
+fn uint32_quantizer_matches_a_file_mitsuba_wrote() {
+    use exr::prelude::*;
+    use mediareg::scene::film::{dequantize_uint32, quantize_uint32};
+    use sha2::{Digest, Sha256};
+    let dir = root().join("tests/fixtures/film");
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("uint32_mitsuba.json")).unwrap())
+            .unwrap();
+    for name in ["uint32_input.exr", "uint32_mitsuba.exr"] {
+        let digest: String = Sha256::digest(std::fs::read(dir.join(name)).unwrap())
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        assert_eq!(
+            meta["sha256"][name].as_str(),
+            Some(digest.as_str()),
+            "{name} is not the file scripts/make_uint32_fixture.py recorded"
+        );
+    }
+    let input = mediareg::image::read_exr(&dir.join("uint32_input.exr")).unwrap();
+    let file = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(dir.join("uint32_mitsuba.exr"))
+        .unwrap();
+    let channels = &file.layer_data.channel_data.list;
+    let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
+    assert_eq!(names, ["B", "G", "R"]);
+    let mut checked = 0;
+    for (c, channel) in channels.iter().enumerate().map(|(i, ch)| (2 - i, ch)) {
+        let FlatSamples::U32(theirs) = &channel.sample_data else {
+            panic!("channel {} is not uint32", channel.name);
+        };
+        for (p, &q) in input.pixels.iter().zip(theirs) {
+            let v = p[c];
+            let ours = quantize_uint32(v);
+            let dithered = v > 0.0 && v < 2f32.powi(-8);
+            let step = ours.abs_diff(q);
+            assert!(
+                step == 0 || (dithered && step <= 1),
+                "{v}: ours {ours}, Mitsuba's {q}"
+            );
+            checked += (!dithered) as usize;
+        }
+    }
+    assert!(checked > 300, "only {checked} values away from the dither");
+    let read_back = mediareg::image::read_exr(&dir.join("uint32_mitsuba.exr")).unwrap();
+    for (c, channel) in channels.iter().enumerate().map(|(i, ch)| (2 - i, ch)) {
+        let FlatSamples::U32(theirs) = &channel.sample_data else {
+            unreachable!()
+        };
+        for (p, &q) in read_back.pixels.iter().zip(theirs) {
+            assert_eq!(p[c], dequantize_uint32(q));
+        }
+    }
+}
