@@ -9,8 +9,9 @@
 //! probability below FALSE_ALARM (Bonferroni). Power tests: a derivative 5% off (on the
 //! cube, the mesh boundary and the chromatic medium; half off on the grid, whose only
 //! reference is noisier), one with its sign flipped, and one without the shadow
-//! rays' term must each fail. Only the image mean's derivative is compared (the
-//! references hold no more).
+//! rays' term must each fail, and on the cube the derivative image turned half a turn
+//! (its mean unchanged). Besides the image mean, each quadrant's mean is compared
+//! against Mitsuba's finite differences.
 
 mod common;
 
@@ -24,7 +25,9 @@ use statrs::distribution::{ContinuousCDF, StudentsT};
 
 /// Whole-file false-alarm probability, and the most comparisons it is shared among.
 const FALSE_ALARM: f64 = 1e-3;
-const COMPARISONS: f64 = 30.0;
+/// The values compared over the file: about 60 (each parameter's image mean against
+/// AD and FD, its four quadrants against FD, per channel where chromatic).
+const COMPARISONS: f64 = 64.0;
 
 /// A mean over seeds and its standard error, per compared value, with its degrees of
 /// freedom.
@@ -93,8 +96,43 @@ fn excess(ours: &Estimate, reference: &Estimate, factor: f64) -> f64 {
 }
 
 /// One scene's reference and mediareg's derivatives of it, per parameter: (name,
-/// ours, Mitsuba's AD if any, Mitsuba's FD if any).
-type Compared = Vec<(String, Estimate, Option<Estimate>, Option<Estimate>)>;
+/// ours, Mitsuba's AD if any, Mitsuba's FD if any, and (ours, Mitsuba's FD) of each
+/// quadrant of the image where the reference has them).
+type Compared = Vec<(
+    String,
+    Estimate,
+    Option<Estimate>,
+    Option<Estimate>,
+    Vec<(Estimate, Estimate)>,
+)>;
+
+/// The image mean per channel, then each quadrant's (top left, top right, bottom left,
+/// bottom right; an odd size's middle row or column in the lower or right half, as
+/// scripts/derivative_references splits them): 15 numbers.
+fn region_means(img: &mediareg::image::Image) -> Vec<f64> {
+    let (w, h) = (img.width, img.height);
+    let (hw, hh) = (w / 2, h / 2);
+    let regions = [
+        (0..w, 0..h),
+        (0..hw, 0..hh),
+        (hw..w, 0..hh),
+        (0..hw, hh..h),
+        (hw..w, hh..h),
+    ];
+    let mut out = Vec::with_capacity(15);
+    for (xs, ys) in regions {
+        let n = (xs.len() * ys.len()) as f64;
+        for c in 0..3 {
+            let sum: f64 = ys
+                .clone()
+                .flat_map(|y| xs.clone().map(move |x| (x, y)))
+                .map(|(x, y)| img.pixels[y * w + x][c] as f64)
+                .sum();
+            out.push(sum / n);
+        }
+    }
+    out
+}
 
 /// mediareg's derivatives of scene `name` (its reference's defines), `seeds` renders
 /// of `spp` each, with the estimator `tweak` makes of the asked-for one.
@@ -131,11 +169,7 @@ fn compare(name: &str, seeds: u64, spp: u32, tweak: impl Fn(Gradient) -> Gradien
             .into_iter()
             .enumerate()
         {
-            let img = img.unwrap();
-            let n = img.pixels.len() as f64;
-            let mean: Vec<f64> = (0..3)
-                .map(|c| img.pixels.iter().map(|p| p[c] as f64).sum::<f64>() / n)
-                .collect();
+            let mean = region_means(&img.unwrap());
             assert!(
                 mean.iter().all(|m| m.is_finite()),
                 "{name}: non-finite derivative"
@@ -156,12 +190,34 @@ fn compare(name: &str, seeds: u64, spp: u32, tweak: impl Fn(Gradient) -> Gradien
                 true => from_json(v, fd_seeds),
                 false => from_json(&v["total"], fd_seeds),
             });
-            // A grey parameter: the sum over channels.
-            let s: Vec<Vec<f64>> = match chromatic {
-                true => s,
-                false => s.iter().map(|m| vec![m.iter().sum()]).collect(),
+            // A grey parameter: the sum over channels. Part 0 is the whole image,
+            // parts 1-4 its quadrants.
+            let part = |q: usize| -> Vec<Vec<f64>> {
+                s.iter()
+                    .map(|m| {
+                        let rgb = &m[3 * q..3 * q + 3];
+                        match chromatic {
+                            true => rgb.to_vec(),
+                            false => vec![rgb.iter().sum()],
+                        }
+                    })
+                    .collect()
             };
-            ((*n).clone(), estimate(&s), ad, fd)
+            let quadrants = match entry["fd"]["quadrants"].as_array() {
+                Some(list) => list
+                    .iter()
+                    .enumerate()
+                    .map(|(q, v)| {
+                        let theirs = match chromatic {
+                            true => from_json(v, fd_seeds),
+                            false => from_json(&v["total"], fd_seeds),
+                        };
+                        (estimate(&part(q + 1)), theirs)
+                    })
+                    .collect(),
+                None => Vec::new(),
+            };
+            ((*n).clone(), estimate(&part(0)), ad, fd, quadrants)
         })
         .collect()
 }
@@ -170,16 +226,22 @@ fn compare(name: &str, seeds: u64, spp: u32, tweak: impl Fn(Gradient) -> Gradien
 /// printed.
 fn worst(name: &str, compared: &Compared, factor: f64) -> f64 {
     let mut worst = 0.0f64;
-    for (param, ours, ad, fd) in compared {
+    for (param, ours, ad, fd, quadrants) in compared {
+        let mut show = |kind: &str, ours: &Estimate, r: &Estimate| {
+            let e = excess(ours, r, factor);
+            println!(
+                "{name} {param} vs Mitsuba {kind}: ours {:?} ± {:?}, Mitsuba {:?} ± {:?}; excess {e:.2}",
+                ours.mean, ours.se, r.mean, r.se
+            );
+            worst = worst.max(e);
+        };
         for (kind, r) in [("AD", ad), ("FD", fd)] {
             if let Some(r) = r {
-                let e = excess(ours, r, factor);
-                println!(
-                    "{name} {param} vs Mitsuba {kind}: ours {:?} ± {:?}, Mitsuba {:?} ± {:?}; excess {e:.2}",
-                    ours.mean, ours.se, r.mean, r.se
-                );
-                worst = worst.max(e);
+                show(kind, ours, r);
             }
+        }
+        for (q, (ours, r)) in quadrants.iter().enumerate() {
+            show(&format!("FD, quadrant {}", q + 1), ours, r);
         }
     }
     worst
@@ -198,12 +260,27 @@ fn cube_derivatives_match_mitsuba() {
         "medium_cube: a derivative differs from Mitsuba 3's ({w:.2})"
     );
     // Power: 5% off, and the sign flipped, fail each parameter.
-    for (param, ours, ad, _) in &c {
+    for (param, ours, ad, ..) in &c {
         let ad = ad.as_ref().unwrap();
         for factor in [1.05, 0.95, -1.0] {
             let e = excess(ours, ad, factor);
             assert!(e > 1.0, "{param} × {factor} passed ({e:.2})");
         }
+    }
+    // Power in the image's layout: the derivative image turned half a turn (the same
+    // mean, each quadrant the opposite one's) fails each parameter.
+    for (param, _, _, _, quadrants) in &c {
+        assert_eq!(
+            quadrants.len(),
+            4,
+            "{param}: the reference has no quadrants"
+        );
+        let e = excess(&quadrants[0].0, &quadrants[3].1, 1.0).max(excess(
+            &quadrants[3].0,
+            &quadrants[0].1,
+            1.0,
+        ));
+        assert!(e > 1.0, "{param} turned half a turn passed ({e:.2})");
     }
 }
 
@@ -217,7 +294,7 @@ fn cube_power_without_shadow_term() {
         g => g,
     };
     let c = compare("medium_cube", 16, 1024, wrong);
-    let (_, ours, ad, _) = c.iter().find(|(p, ..)| p == "sigma_t").unwrap();
+    let (_, ours, ad, ..) = c.iter().find(|(p, ..)| p == "sigma_t").unwrap();
     let e = excess(ours, ad.as_ref().unwrap(), 1.0);
     assert!(
         e > 1.0,
@@ -235,7 +312,7 @@ fn mesh_boundary_derivatives_match_mitsuba() {
     );
     // Power: 5% off, and the sign flipped, fail each parameter against Mitsuba's AD
     // (measured excess 1.55-9.7 at 5%, σ_t the least).
-    for (param, ours, ad, _) in &c {
+    for (param, ours, ad, ..) in &c {
         for factor in [1.05, 0.95, -1.0] {
             let e = excess(ours, ad.as_ref().unwrap(), factor);
             assert!(e > 1.0, "bunny_medium {param} × {factor} passed ({e:.2})");
@@ -252,7 +329,7 @@ fn chromatic_derivatives_match_mitsuba() {
         "chromatic_sphere: a derivative differs from Mitsuba 3's ({w:.2})"
     );
     // Power on the chromatic parameters (g's is the cube's: here its noise is larger).
-    for (param, ours, ad, _) in c.iter().filter(|(p, ..)| p != "g") {
+    for (param, ours, ad, ..) in c.iter().filter(|(p, ..)| p != "g") {
         let e = excess(ours, ad.as_ref().unwrap(), 1.05);
         assert!(e > 1.0, "chromatic {param} × 1.05 passed ({e:.2})");
     }
@@ -271,7 +348,7 @@ fn grid_scale_derivative_matches_mitsuba() {
     // docs/gradient.md) and its standard error is 4% of the value, so at this file's
     // false-alarm level 5% off is within its noise (excess 0.12) and so is 25% (0.98):
     // a tighter check needs a longer reference (16 seeds of FD took most of 272 s).
-    let (_, ours, _, fd) = c.iter().find(|(p, ..)| p == "scale").unwrap();
+    let (_, ours, _, fd, _) = c.iter().find(|(p, ..)| p == "scale").unwrap();
     for factor in [1.5, 0.5, -1.0] {
         let e = excess(ours, fd.as_ref().unwrap(), factor);
         assert!(
