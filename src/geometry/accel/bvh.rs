@@ -27,16 +27,30 @@ pub(super) struct Bvh {
 pub(super) fn build(aabbs: &[Aabb]) -> CwBvh {
     build_cwbvh(
         aabbs,
-        // The slowest build (more reinsertion): ~10% faster renders of the Bunny than
-        // `medium_build`, for 0.25 s more on a 100k-triangle mesh. Pre-splitting needs
-        // the triangles, not boxes.
         BvhBuildParams {
+            // Pre-splitting needs the triangles, not boxes.
             pre_split: false,
-            ..BvhBuildParams::very_slow_build()
+            ..build_params(aabbs.len())
         },
         &mut Duration::default(),
     )
 }
+
+/// The build for `primitives`: the slowest (most reinsertion) below
+/// [`LARGE_MESH`] (~10% faster renders of the Bunny than `medium_build`, for 0.25 s
+/// more on a 100k-triangle mesh), `fast_build` from there on, where the slowest build's
+/// reinsertion grows to most of the load (on a displaced sphere of 5M triangles 43 of 45
+/// s) and rendered no faster (docs/performance.md, "Large meshes without Embree").
+fn build_params(primitives: usize) -> BvhBuildParams {
+    match primitives >= LARGE_MESH {
+        true => BvhBuildParams::fast_build(),
+        false => BvhBuildParams::very_slow_build(),
+    }
+}
+
+/// From this many triangles a mesh is large: a quicker build (here and in Embree's
+/// backend), and a render without Embree says what Embree would save.
+pub(crate) const LARGE_MESH: usize = 1_000_000;
 
 impl Bvh {
     /// Closest-hit traversal (obvhs's `ray_traverse` with [`node_hits`] as its node
