@@ -219,8 +219,8 @@ fn instancing_mitsuba_refuses_or_we_cannot_bake_is_refused_with_the_line() {
     }
 }
 
-/// Several sensors: sensor 0 by default, `--sensor N` picks another, with a line saying
-/// which; a number past the last is an error.
+/// Several sensors: sensor 0 by default, with a line saying so; `--sensor N` picks one,
+/// without that line (it was asked for); a number past the last is an error.
 #[test]
 fn sensor_option_picks_one_of_several_sensors() {
     let film = |w: u32| {
@@ -232,17 +232,33 @@ fn sensor_option_picks_one_of_several_sensors() {
         film(12)
     );
     let pick = |n: usize| BuildOverrides {
-        sensor: n,
+        sensor: Some(n),
         ..Default::default()
     };
+    let said =
+        |s: &mediareg::scene::Scene| s.warnings.iter().any(|w| w.contains("rendering sensor"));
+    let unasked = build_text("sensor", &text, false, &Default::default()).unwrap();
     let s0 = build_text("sensor0", &text, false, &pick(0)).unwrap();
     let s1 = build_text("sensor1", &text, false, &pick(1)).unwrap();
-    assert_eq!((s0.shot.film.width, s1.shot.film.width), (8, 12));
+    assert_eq!(
+        (
+            unasked.shot.film.width,
+            s0.shot.film.width,
+            s1.shot.film.width
+        ),
+        (8, 8, 12)
+    );
     assert!(
-        s1.warnings.iter().any(
-            |w| w.contains("scene.xml:3:") && w.contains("rendering sensor 1 of the scene's 2")
+        unasked.warnings.iter().any(
+            |w| w.contains("scene.xml:2:") && w.contains("rendering sensor 0 of the scene's 2")
         ),
         "{:?}",
+        unasked.warnings
+    );
+    assert!(
+        !said(&s0) && !said(&s1),
+        "{:?} {:?}",
+        s0.warnings,
         s1.warnings
     );
     let e = build_text("sensor2", &text, false, &pick(2))

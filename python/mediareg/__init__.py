@@ -33,14 +33,15 @@ __all__ = [
 ]
 
 
-def load_file(path, search_path=None, strict_v3=False, sensor=0, **params):
+def load_file(path, search_path=None, strict_v3=False, sensor=None, **params):
     """Loads a Mitsuba 3 scene file (Mitsuba's ``mi.load_file``).
 
     ``params`` set the scene's parameters (``$name``), as ``-D name=value`` does: they
     override ``<default>``, and one the scene never uses is an error. ``search_path``:
     folders searched for meshes and includes after the scene's own (the CLI's ``-a``).
     ``strict_v3``: refuse the Mitsuba 0.6 readings (the CLI's ``--strict-v3``).
-    ``sensor``: which of the file's sensors the scene is built for (the CLI's ``--sensor``).
+    ``sensor``: which of the file's sensors the scene is built for (the CLI's ``--sensor``;
+    None: the first, with a warning where there are several).
 
     Raises SceneError with the CLI's ``file:line:col: message``. The loader's warnings
     are issued as Python warnings (and kept in ``scene.warnings``).

@@ -102,15 +102,15 @@ pub(crate) fn param_text(value: &Bound<'_, PyAny>) -> PyResult<String> {
     Ok(value.str()?.to_str()?.to_owned())
 }
 
-/// load_file(path, search_path=None, strict_v3=False, sensor=0, **params)
+/// load_file(path, search_path=None, strict_v3=False, sensor=None, **params)
 #[pyfunction]
-#[pyo3(signature = (path, search_path=None, strict_v3=false, sensor=0, **params))]
+#[pyo3(signature = (path, search_path=None, strict_v3=false, sensor=None, **params))]
 fn load_file(
     py: Python<'_>,
     path: PathBuf,
     search_path: Option<Vec<PathBuf>>,
     strict_v3: bool,
-    sensor: usize,
+    sensor: Option<usize>,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyScene> {
     let mut defines = Vec::new();
@@ -135,7 +135,7 @@ fn load_file(
     Ok(PyScene {
         inner: Arc::new(scene),
         path,
-        sensor,
+        sensor: sensor.unwrap_or(0),
     })
 }
 

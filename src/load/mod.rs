@@ -65,9 +65,9 @@ pub struct BuildOverrides {
     /// A crop window `[x, y, width, height]` of the full film, replacing the file's
     /// (Mitsuba's `crop_offset_x/y`, `crop_width/height`).
     pub crop: Option<[usize; 4]>,
-    /// Which of the file's `<sensor>`s to render, in file order (`--sensor N`; Mitsuba's
-    /// `mitsuba` renders sensor 0).
-    pub sensor: usize,
+    /// Which of the file's `<sensor>`s to render, in file order (`--sensor N`); None: the
+    /// first, as Mitsuba's `mitsuba` renders, with a warning where there are several.
+    pub sensor: Option<usize>,
     /// One of mediareg's integrators (`--integrator NAME`: path, volpath, direct) in place
     /// of the file's.
     pub integrator: Option<String>,
@@ -143,11 +143,12 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         b.rfilter(c.object)?;
     }
     let sensors = root.children_of(ObjectKind::Sensor);
-    if overrides.sensor > 0 && overrides.sensor >= sensors.len() {
+    let chosen_sensor = overrides.sensor.unwrap_or(0);
+    if chosen_sensor > 0 && chosen_sensor >= sensors.len() {
         return Err(root
             .error(format!(
                 "--sensor {}: the scene has {} <sensor>s",
-                overrides.sensor,
+                chosen_sensor,
                 sensors.len()
             ))
             .with_hint("sensors are numbered from 0 in file order"));
@@ -160,15 +161,15 @@ pub fn build_scene(desc: &SceneDescription, overrides: &BuildOverrides) -> Resul
         let mut chosen = None;
         for (i, s) in sensors.iter().enumerate() {
             let built = b.sensor(s.object)?;
-            if i == overrides.sensor {
+            if i == chosen_sensor {
                 chosen = Some(built);
             }
         }
-        if sensors.len() > 1 {
+        // Said only where no sensor was asked for: one asked for is no surprise.
+        if sensors.len() > 1 && overrides.sensor.is_none() {
             b.warnings.push(format!(
-                "{}: rendering sensor {} of the scene's {} (--sensor N picks another, 0 = the first in the file)",
-                sensors[overrides.sensor].loc,
-                overrides.sensor,
+                "{}: rendering sensor 0 of the scene's {} (--sensor N picks another, 0 = the first in the file)",
+                sensors[0].loc,
                 sensors.len()
             ));
         }

@@ -44,9 +44,9 @@ pub struct SceneArgs {
     #[arg(long)]
     pub strict_v3: bool,
     /// Which <sensor> to render when the scene has several: 0 is the first in the file
-    /// (as Mitsuba's `mitsuba` renders).
-    #[arg(long, default_value_t = 0, value_name = "N")]
-    pub sensor: usize,
+    /// (as Mitsuba's `mitsuba` renders; unasked, with a warning where there are several).
+    #[arg(long, value_name = "N")]
+    pub sensor: Option<usize>,
     /// Render with one of mediareg's integrators (path, volpath, direct) instead of the
     /// file's; the file's max_depth, rr_depth and hide_emitters are kept.
     #[arg(long, value_name = "NAME")]

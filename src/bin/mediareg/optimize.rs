@@ -229,7 +229,7 @@ pub fn run(args: OptimizeArgs) -> Result<()> {
         let target =
             image::read_exr(&path).map_err(|e| anyhow!("--target {}: {e}", path.display()))?;
         let overrides = BuildOverrides {
-            sensor,
+            sensor: Some(sensor),
             ..Default::default()
         };
         let built =
