@@ -2,7 +2,9 @@
 //! back to for a single frame when OIDN is there. Plain volpath is then the only
 //! estimator (the split R_s + D is plain volpath's estimate on every path), and the one
 //! question is whether OIDN lowers its error. A denoiser can raise it (measured: a camera
-//! inside a medium, a furnace, a converged image), so it is checked without a reference.
+//! inside a medium, a furnace, a converged image), so where asked (`--oidn-check`) it is
+//! checked without a reference; else the frame is [`through_oidn`]'s (the check's own
+//! OIDN run cost more than it won on held-out scenes: docs/regularize.md, "One frame").
 //! The frame's N samples per pixel are rendered as three ranges of the shot's own
 //! streams: M (samples 0..N − 2p), A and B (p each, the last 2p). For X = A or B,
 //! unbiased and independent of M (nearly: below), E (O − X)² − E (M − X)² =
