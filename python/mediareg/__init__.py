@@ -86,7 +86,7 @@ def render(scene, spp=None, seed=0, sensor=None, threads=None, gradient=None, me
         threads=threads,
         gradient=gradient,
         medium=medium,
-        denoise=denoise, pick=pick, oidn_check=oidn_check,
+        denoise=denoise,
     )
 
 
@@ -125,7 +125,7 @@ def regularize(scene, spp=None, seed=0, threads=None, medium=None, predict="diff
         fit_spp=fit_spp, fit_at=fit_at, frames=frames, wa=wa, reproject=reproject,
         orbit=orbit, target=None if target is None else tuple(target), dolly=dolly,
         camera_path=None if camera_path is None else str(camera_path), spatial=spatial,
-        denoise=denoise,
+        denoise=denoise, pick=pick, oidn_check=oidn_check,
     )
 
 
