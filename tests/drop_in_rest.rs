@@ -661,6 +661,28 @@ fn films_v2_with_component_format(value: &str) -> std::path::PathBuf {
     common::scene_text::write(&dir, "films_v2.xml", &text)
 }
 
+/// The R, G, B channels of a uint32 EXR (written B, G, R, as Mitsuba and mediareg
+/// write them), each its samples; fails where a channel is missing or not uint32.
+fn uint32_channels(path: &std::path::Path) -> [Vec<u32>; 3] {
+    use exr::prelude::*;
+    let file = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .unwrap();
+    let channels = &file.layer_data.channel_data.list;
+    let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
+    assert_eq!(names, ["B", "G", "R"], "{}", path.display());
+    let samples = |i: usize| match &channels[i].sample_data {
+        FlatSamples::U32(v) => v.clone(),
+        other => panic!("channel {} is not uint32: {other:?}", channels[i].name),
+    };
+    [samples(2), samples(1), samples(0)]
+}
+
 /// A Mitsuba 2 file whose `hdrfilm` asks `component_format` uint32 loads and renders as
 /// in Mitsuba 3: `mediareg render` writes R, G, B as uint32 samples (Mitsuba's
 /// `Imf::UINT` channels), each the render's value quantized as Mitsuba quantizes it
@@ -669,7 +691,6 @@ fn films_v2_with_component_format(value: &str) -> std::path::PathBuf {
 /// error naming it and the formats there are.
 #[test]
 fn uint32_film_is_written_as_mitsuba_writes_it() {
-    use exr::prelude::*;
     use mediareg::scene::film::quantize_uint32;
     let scene = films_v2_with_component_format("uint32");
     let out = scene.with_file_name("out.exr");
@@ -696,26 +717,9 @@ fn uint32_film_is_written_as_mitsuba_writes_it() {
     let want = mediareg::integrator::render(&s, &s.shot, &Default::default())
         .image
         .pixels;
-    let file = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(&out)
-        .unwrap();
-    let channels = &file.layer_data.channel_data.list;
-    let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
-    assert_eq!(names, ["B", "G", "R"]);
-    for (c, channel) in channels.iter().enumerate().map(|(i, ch)| (2 - i, ch)) {
-        let FlatSamples::U32(samples) = &channel.sample_data else {
-            panic!(
-                "channel {} is not uint32: {:?}",
-                channel.name, channel.sample_data
-            );
-        };
+    for (c, samples) in uint32_channels(&out).iter().enumerate() {
         let quantized: Vec<u32> = want.iter().map(|p| quantize_uint32(p[c])).collect();
-        assert_eq!(samples, &quantized, "channel {}", channel.name);
+        assert_eq!(samples, &quantized, "channel {c}");
     }
     let values = || want.iter().flatten();
     assert!(values().any(|&v| v > 1.0), "no pixel saturates");
@@ -788,18 +792,13 @@ fn alpha_comparison_detects_sigma_t_and_radius_off() {
 /// in f32 is an integer from 2^-9 up, so the rounding mode shows only under the dither.)
 #[test]
 fn uint32_quantizer_matches_a_file_mitsuba_wrote() {
-    use exr::prelude::*;
     use mediareg::scene::film::{dequantize_uint32, quantize_uint32};
-    use sha2::{Digest, Sha256};
     let dir = root().join("tests/fixtures/film");
     let meta: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("uint32_mitsuba.json")).unwrap())
             .unwrap();
     for name in ["uint32_input.exr", "uint32_mitsuba.exr"] {
-        let digest: String = Sha256::digest(std::fs::read(dir.join(name)).unwrap())
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
+        let digest = common::sha256_hex(&dir.join(name));
         assert_eq!(
             meta["sha256"][name].as_str(),
             Some(digest.as_str()),
@@ -807,22 +806,9 @@ fn uint32_quantizer_matches_a_file_mitsuba_wrote() {
         );
     }
     let input = mediareg::image::read_exr(&dir.join("uint32_input.exr")).unwrap();
-    let file = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(dir.join("uint32_mitsuba.exr"))
-        .unwrap();
-    let channels = &file.layer_data.channel_data.list;
-    let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
-    assert_eq!(names, ["B", "G", "R"]);
+    let theirs = uint32_channels(&dir.join("uint32_mitsuba.exr"));
     let mut checked = 0;
-    for (c, channel) in channels.iter().enumerate().map(|(i, ch)| (2 - i, ch)) {
-        let FlatSamples::U32(theirs) = &channel.sample_data else {
-            panic!("channel {} is not uint32", channel.name);
-        };
+    for (c, theirs) in theirs.iter().enumerate() {
         for (p, &q) in input.pixels.iter().zip(theirs) {
             let v = p[c];
             let ours = quantize_uint32(v);
@@ -837,10 +823,7 @@ fn uint32_quantizer_matches_a_file_mitsuba_wrote() {
     }
     assert!(checked > 300, "only {checked} values away from the dither");
     let read_back = mediareg::image::read_exr(&dir.join("uint32_mitsuba.exr")).unwrap();
-    for (c, channel) in channels.iter().enumerate().map(|(i, ch)| (2 - i, ch)) {
-        let FlatSamples::U32(theirs) = &channel.sample_data else {
-            unreachable!()
-        };
+    for (c, theirs) in theirs.iter().enumerate() {
         for (p, &q) in read_back.pixels.iter().zip(theirs) {
             assert_eq!(p[c], dequantize_uint32(q));
         }

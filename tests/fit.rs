@@ -37,18 +37,13 @@ fn cube(defines: &[(&str, &str)]) -> mediareg::scene::Scene {
 /// The fixture, refused where its bytes are not those its JSON records (as reference/'s
 /// images are).
 fn target() -> mediareg::image::Image {
-    use sha2::{Digest, Sha256};
     let dir = root().join("tests/fixtures/fit");
     let meta: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join("thin_cube_mitsuba.json")).expect("the fixture's JSON"),
     )
     .expect("valid JSON");
     let path = dir.join("thin_cube_mitsuba.exr");
-    let bytes = std::fs::read(&path).expect("the fixture");
-    let digest: String = Sha256::digest(&bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
+    let digest = common::sha256_hex(&path);
     assert_eq!(
         meta["sha256"].as_str(),
         Some(digest.as_str()),

@@ -454,3 +454,13 @@ pub fn oidn_present() -> bool {
         }
     }
 }
+
+/// The sha256 of a file's bytes, in hex (as the fixtures' JSON records it).
+pub fn sha256_hex(path: &Path) -> String {
+    use sha2::{Digest, Sha256};
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    Sha256::digest(&bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
