@@ -22,7 +22,9 @@
 //!
 //! Beside the radiance it estimates the derivatives volpath does (`volpath::Gradient`):
 //! the albedo's (or the difference) in dβ, and one medium's extinction's and g's in
-//! `derivatives`, each updated wherever β is, and only where the render asks for it.
+//! `derivatives`, each updated wherever β is, and only where the render asks for it: a
+//! render that asks for none runs the paths' instance without them (`PacketPaths<false>`),
+//! which carries no derivative weight at all.
 //!
 //! The estimator is the scalar one's, step for step, with the random draws in the
 //! scalar path's order (the hero channel; per vertex the roulette, the distance, the
@@ -60,7 +62,7 @@ use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
 pub use lanes::WIDTH;
 use lanes::{lanes_of, mask_of, L, V3};
-use paths::{Context, PacketPaths};
+use paths::PacketPaths;
 pub use scene::{PacketScene, PacketSettings, MAX_ABS_G};
 use shapes::{medium_normal, surface_normal};
 
@@ -95,10 +97,14 @@ pub fn sample_packet(
 ) {
     let n = rays.len();
     assert!(n <= WIDTH && rngs.len() == n && out.len() == n);
-    let mut paths = PacketPaths::new(ps, settings, rays, rngs);
-    let ctx = Context::new(scene, ps, settings, &paths);
-    while paths.step(&ctx, rngs) {}
-    paths.write(out);
+    // A plain render runs the instance without derivatives (`PacketPaths`).
+    if settings.derivatives {
+        let paths = PacketPaths::<true>::new(ps, settings, rays, rngs);
+        paths.run((scene, ps), settings, rngs, out);
+    } else {
+        let paths = PacketPaths::<false>::new(ps, settings, rays, rngs);
+        paths.run((scene, ps), settings, rngs, out);
+    }
 }
 
 /// The emission the lanes of `mask` see on the surfaces `surface` they met at
@@ -239,5 +245,7 @@ fn gather_media(
 
 #[cfg(test)]
 mod kernel_tests;
+#[cfg(test)]
+mod plain_tests;
 #[cfg(test)]
 mod tests;

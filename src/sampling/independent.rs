@@ -56,7 +56,7 @@ impl Pcg32 {
     /// the sample's points of the pixel's padded (0,2)-sequences (`sampling::padded`):
     /// each draw of one sample is uniform and independent of the others, so every
     /// estimate keeps its expectation; across a pixel's samples each draw is stratified.
-    #[inline]
+    #[inline(always)]
     pub fn for_path(seed: u64, pixel: u64, sample: u32, scrambles: &PaddedScrambles) -> Self {
         let mut r = Pcg32::for_sample(seed, pixel, sample as u64);
         r.draw = 0;

@@ -66,7 +66,7 @@ impl PaddedScrambles {
     /// index's reversed bits and reverses its result, and the radical inverse reverses
     /// it back: so the hash's output is the first coordinate as it is, and the second
     /// is computed from it as it is (`sobol_second_reversed`). No bit reversal per draw.
-    #[inline]
+    #[inline(always)]
     pub fn points(&self, index: u32) -> PaddedPoints {
         let prepared = hash_prepared(index);
         let mut p = PaddedPoints::default();

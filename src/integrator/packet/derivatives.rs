@@ -12,11 +12,12 @@ use wide::CmpEq;
 use super::lanes::{L, V3};
 use super::scene::PacketSettings;
 
-/// The derivative weights of a packet's paths and what they gathered.
-pub(super) struct Derivatives {
+/// The derivative weights of a packet's paths and what they gathered; in the instance
+/// `D = false` (a render without derivatives) none is estimated, known at compile time.
+pub(super) struct Derivatives<const D: bool> {
     /// Whether the extinction's and g's derivatives are estimated.
-    pub(super) sigma_on: bool,
-    pub(super) g_on: bool,
+    sigma_on: bool,
+    g_on: bool,
     /// ∂β/∂σ_t and ∂β/∂g per lane.
     d_sigma: V3,
     d_g: V3,
@@ -25,7 +26,7 @@ pub(super) struct Derivatives {
     pub(super) g_result: V3,
 }
 
-impl Derivatives {
+impl<const D: bool> Derivatives<D> {
     pub(super) fn new(settings: &PacketSettings) -> Self {
         let zero = V3::splat(Vec3::ZERO);
         Derivatives {
@@ -38,10 +39,22 @@ impl Derivatives {
         }
     }
 
+    /// Whether the extinction's derivative is estimated.
+    #[inline(always)]
+    pub(super) fn sigma_on(&self) -> bool {
+        D && self.sigma_on
+    }
+
+    /// Whether g's derivative is estimated.
+    #[inline(always)]
+    pub(super) fn g_on(&self) -> bool {
+        D && self.g_on
+    }
+
     /// Whether any derivative beyond the albedo's is estimated.
     #[inline(always)]
     pub(super) fn on(&self) -> bool {
-        self.sigma_on | self.g_on
+        D && (self.sigma_on | self.g_on)
     }
 
     /// The lanes of `mask` whose derivative weights are both 0 (all of `mask` where

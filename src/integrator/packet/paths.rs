@@ -75,7 +75,10 @@ struct Passage {
 }
 
 /// The paths of a packet, one a lane: weights, rays, where they are, what they gathered.
-pub(super) struct PacketPaths {
+/// `D`: whether the render estimates a derivative (`Gradient` other than `None`). A plain
+/// render's packet is the instance without, in which dβ, dσ and dg (all zero there) are
+/// neither carried nor updated: it does none of their arithmetic.
+pub(super) struct PacketPaths<const D: bool> {
     o: V3,
     d: V3,
     tmax: L,
@@ -108,15 +111,15 @@ pub(super) struct PacketPaths {
     hero_x: L,
     hero_y: L,
     /// The derivatives in a medium's extinction and g, where asked for.
-    derivs: Derivatives,
+    derivs: Derivatives<D>,
 }
 
 impl<'a> Context<'a> {
-    pub(super) fn new(
+    pub(super) fn new<const D: bool>(
         scene: &'a Scene,
         ps: &'a PacketScene,
         settings: &'a PacketSettings,
-        paths: &PacketPaths,
+        paths: &PacketPaths<D>,
     ) -> Self {
         let single_medium = (ps.media.len() == 1).then(|| {
             let m = &ps.media[0];
@@ -141,7 +144,7 @@ impl<'a> Context<'a> {
     }
 }
 
-impl PacketPaths {
+impl<const D: bool> PacketPaths<D> {
     /// The camera rays `(o, d, tmax)` (at most [`WIDTH`]), each lane's hero channel
     /// drawn first from its stream, as the scalar path draws it.
     pub(super) fn new(
@@ -187,6 +190,20 @@ impl PacketPaths {
             hero_y: mask_of(|k| hero[k] == 1),
             derivs: Derivatives::new(settings),
         }
+    }
+
+    /// Every vertex of the paths, until none is left, and their samples into `out`.
+    #[inline(always)]
+    pub(super) fn run(
+        mut self,
+        (scene, ps): (&Scene, &PacketScene),
+        settings: &PacketSettings,
+        rngs: &mut [Pcg32],
+        out: &mut [PathSample],
+    ) {
+        let ctx = Context::new(scene, ps, settings, &self);
+        while self.step(&ctx, rngs) {}
+        self.write(out);
     }
 
     /// Each lane's hero channel of `v`.
@@ -240,9 +257,11 @@ impl PacketPaths {
     #[inline(always)]
     fn survive(&mut self, ctx: &Context, rngs: &mut [Pcg32]) -> bool {
         let ps = ctx.ps;
-        self.alive &= !self
-            .derivs
-            .zero_of(self.beta.is_zero() & self.d_beta.is_zero());
+        let zero = match D {
+            true => self.beta.is_zero() & self.d_beta.is_zero(),
+            false => self.beta.is_zero(),
+        };
+        self.alive &= !self.derivs.zero_of(zero);
         self.alive &= self.depth.cmp_lt(L::splat(ps.max_depth as f32));
         if self.alive.none() {
             return false;
@@ -255,14 +274,21 @@ impl PacketPaths {
             } else {
                 self.beta
             };
-            let q = continue_probability(weight, self.d_beta, self.eta);
+            let d_beta = if D {
+                self.d_beta
+            } else {
+                V3::splat(Vec3::ZERO)
+            };
+            let q = continue_probability(weight, d_beta, self.eta);
             // A NaN q fails u < q: the path ends, as the scalar one does.
             let ended = played & !u.cmp_lt(q);
             self.alive &= !ended;
             let go_on = played & self.alive;
             self.beta = self.beta.select(go_on, self.beta.div(q));
-            self.d_beta = self.d_beta.select(go_on, self.d_beta.div(q));
-            self.derivs.div(go_on, q);
+            if D {
+                self.d_beta = self.d_beta.select(go_on, self.d_beta.div(q));
+                self.derivs.div(go_on, q);
+            }
         }
         true
     }
@@ -331,7 +357,10 @@ impl PacketPaths {
         };
         let (collided, flight, d_beta_before) = self.sample_flight(ctx, ends, m, rngs);
         let passed = in_medium & !collided;
-        let finite = self.beta.is_finite() & self.r_u.is_finite() & self.d_beta.is_finite();
+        let mut finite = self.beta.is_finite() & self.r_u.is_finite();
+        if D {
+            finite &= self.d_beta.is_finite();
+        }
         self.alive &= !in_medium | self.derivs.finite_of(finite);
         let collided = collided & self.alive;
         self.depth = collided.blend(self.depth + L::ONE, self.depth);
@@ -390,13 +419,15 @@ impl PacketPaths {
         self.result = self
             .result
             .select(finite, self.result.add(self.beta.mul(x)));
-        self.d_result = self
-            .d_result
-            .select(finite, self.d_result.add(self.d_beta.mul(x)));
-        // ∂T/∂σ_t = −t T in the differentiated medium.
-        let d_log = V3::all(m.chosen_sigma.blend(-ends.t_end, L::ZERO));
-        self.derivs
-            .gather_light(finite, x, self.beta, (d_log, L::ZERO));
+        if D {
+            self.d_result = self
+                .d_result
+                .select(finite, self.d_result.add(self.d_beta.mul(x)));
+            // ∂T/∂σ_t = −t T in the differentiated medium.
+            let d_log = V3::all(m.chosen_sigma.blend(-ends.t_end, L::ZERO));
+            self.derivs
+                .gather_light(finite, x, self.beta, (d_log, L::ZERO));
+        }
         ahead & !le.is_zero()
     }
 
@@ -418,8 +449,10 @@ impl PacketPaths {
                 let f =
                     heterogeneous::sample_flight(h, self.o, self.d, ends.t_end, in_medium, rngs);
                 self.beta = self.beta.select(in_medium, self.beta.mul(f.weight));
-                self.d_beta = self.d_beta.select(in_medium, self.d_beta.mul(f.weight));
-                self.derivs.scale(in_medium, f.weight);
+                if D {
+                    self.d_beta = self.d_beta.select(in_medium, self.d_beta.mul(f.weight));
+                    self.derivs.scale(in_medium, f.weight);
+                }
                 (in_medium & f.collided, f.t, f.albedo)
             }
             None => {
@@ -436,7 +469,7 @@ impl PacketPaths {
                     let w_passed = pass_weight(tr, tr_hero);
                     let w = w_passed.select(collided, w_collided);
                     self.derivs.scale(in_medium, w);
-                    if self.derivs.sigma_on {
+                    if self.derivs.sigma_on() {
                         // ∂f/∂σ_t over the same p: T (1 − σ_t t) at a collision, −t T
                         // passing (volpath's `MediumParams`).
                         let dw = collision_weight_d_sigma(tr, m.sigma, t, m.sigma_hero, tr_hero);
@@ -445,10 +478,12 @@ impl PacketPaths {
                             .add_sigma(in_medium & m.chosen_sigma, self.beta, dw);
                     }
                     self.beta = self.beta.select(in_medium, self.beta.mul(w));
-                    self.d_beta = self.d_beta.select(in_medium, self.d_beta.mul(w));
+                    if D {
+                        self.d_beta = self.d_beta.select(in_medium, self.d_beta.mul(w));
+                    }
                     self.r_u = self.r_u.select(in_medium, self.r_u.mul(w));
                 }
-                if ctx.ps.grey && self.derivs.sigma_on {
+                if ctx.ps.grey && self.derivs.sigma_on() {
                     // ∂ ln(σ_t e^{−σ_t t}) = 1/σ_t − t at a collision, −t passing a
                     // (finite) stretch; f / p = 1.
                     let s = collided.blend(L::ONE / m.sigma_hero - flight, -ends.t_end);
@@ -459,19 +494,22 @@ impl PacketPaths {
                 (collided, flight, V3::splat(Vec3::ONE))
             }
         };
-        let mut d_beta_before = self.d_beta.mul(m.albedo).mul(volume_albedo);
-        // d(β α)/dα: dβ a + β b at a vertex (Gradient::vertex_factors).
-        let d_beta_vertex = self
-            .d_beta
-            .mul(m.a)
-            .add(self.beta.mul(m.b))
-            .mul(volume_albedo);
-        self.d_beta = self.d_beta.select(collided, d_beta_vertex);
+        let mut d_beta_before = self.d_beta;
+        if D {
+            d_beta_before = self.d_beta.mul(m.albedo).mul(volume_albedo);
+            // d(β α)/dα: dβ a + β b at a vertex (Gradient::vertex_factors).
+            let d_beta_vertex = self
+                .d_beta
+                .mul(m.a)
+                .add(self.beta.mul(m.b))
+                .mul(volume_albedo);
+            self.d_beta = self.d_beta.select(collided, d_beta_vertex);
+        }
         self.beta = self
             .beta
             .select(collided, self.beta.mul(m.albedo.mul(volume_albedo)));
         self.derivs.scale(collided, m.albedo.mul(volume_albedo));
-        if let Some(h) = ctx.het.filter(|_| self.derivs.sigma_on) {
+        if let Some(h) = ctx.het.filter(|_| self.derivs.sigma_on()) {
             // d/d scale: 1/scale at a real collision (β with its α now), −∫σ over the
             // flight (one lookup's estimate).
             let mask = in_medium & m.chosen_sigma;
@@ -485,9 +523,11 @@ impl PacketPaths {
             // Keep mean(r) = 1 (volpath's rescaling).
             let k = in_medium.blend(self.r_u.mean(), L::ONE);
             self.beta = self.beta.div(k);
-            self.d_beta = self.d_beta.div(k);
-            self.derivs.div_all(k);
-            d_beta_before = d_beta_before.div(k);
+            if D {
+                self.d_beta = self.d_beta.div(k);
+                self.derivs.div_all(k);
+                d_beta_before = d_beta_before.div(k);
+            }
             self.r_u = self.r_u.div(k);
         }
         (collided, flight, d_beta_before)
@@ -518,19 +558,21 @@ impl PacketPaths {
                 let shadow =
                     shadow_transmittance(ctx.scene, ps, ray, from, es.some, extinction, rngs);
                 let x = es.value.mul(shadow.tr).scale(phase * es.weight(phase));
-                let weight_of_x = if ctx.settings.nee_ignores_vertex {
-                    d_beta_before
-                } else {
-                    self.d_beta
-                };
                 self.result = self
                     .result
                     .select(es.some, self.result.add(self.beta.mul(x)));
-                self.d_result = self
-                    .d_result
-                    .select(es.some, self.d_result.add(weight_of_x.mul(x)));
+                if D {
+                    let weight_of_x = if ctx.settings.nee_ignores_vertex {
+                        d_beta_before
+                    } else {
+                        self.d_beta
+                    };
+                    self.d_result = self
+                        .d_result
+                        .select(es.some, self.d_result.add(weight_of_x.mul(x)));
+                }
                 // The shadow ray's ∂ ln T and the phase value's ∂ ln p / ∂g.
-                let g_score = if self.derivs.g_on {
+                let g_score = if self.derivs.g_on() {
                     let score = hg_log_derivative_g(m.g, L::ONE - cos);
                     m.chosen_g.blend(score, L::ZERO)
                 } else {
@@ -546,7 +588,7 @@ impl PacketPaths {
         // Exact sampling (in f32: the packet takes only moderate |g|): the weight is 1.
         let w = hg_sample_angle(m.g, u1);
         let wo = direction_at(d, w, u2);
-        if self.derivs.g_on {
+        if self.derivs.g_on() {
             // f / p = 1 (exact sampling): with p detached, ∂f/∂g / p = ∂ ln p / ∂g.
             let score = hg_log_derivative_g(m.g, w);
             self.derivs
@@ -605,10 +647,12 @@ impl PacketPaths {
             self.result = self
                 .result
                 .select(seen, self.result.add(self.beta.mul(sky)));
-            self.d_result = self
-                .d_result
-                .select(seen, self.d_result.add(self.d_beta.mul(sky)));
-            self.derivs.gather(seen, sky);
+            if D {
+                self.d_result = self
+                    .d_result
+                    .select(seen, self.d_result.add(self.d_beta.mul(sky)));
+                self.derivs.gather(seen, sky);
+            }
             self.alive &= !escapes;
         }
         if at_surface.any() {
@@ -625,8 +669,10 @@ impl PacketPaths {
         let ok = at_boundary & b.pdf.cmp_gt(L::ZERO);
         self.alive &= !(at_boundary & !ok);
         self.beta = self.beta.select(ok, self.beta.mul(b.weight));
-        self.d_beta = self.d_beta.select(ok, self.d_beta.mul(b.weight));
-        self.derivs.scale(ok, b.weight);
+        if D {
+            self.d_beta = self.d_beta.select(ok, self.d_beta.mul(b.weight));
+            self.derivs.scale(ok, b.weight);
+        }
         self.eta = ok.blend(self.eta * b.eta, self.eta);
         self.depth = ok.blend(self.depth + L::ONE, self.depth);
         self.crossings = ok.blend(L::ZERO, self.crossings);
@@ -670,8 +716,10 @@ impl PacketPaths {
                 (self.last_p, self.last_pdf),
             );
             self.result = self.result.add(self.beta.mul(seen));
-            self.d_result = self.d_result.add(self.d_beta.mul(seen));
-            self.derivs.gather(at_surface & !counted, seen);
+            if D {
+                self.d_result = self.d_result.add(self.d_beta.mul(seen));
+                self.derivs.gather(at_surface & !counted, seen);
+            }
             let first = at_surface
                 & self.depth.cmp_eq(L::ZERO)
                 & self.crossings.cmp_eq(L::ZERO)
@@ -694,12 +742,14 @@ impl PacketPaths {
                 let f = rho.scale(pdf * es.weight(pdf));
                 let x = f.mul(es.value).mul(shadow.tr);
                 self.result = self.result.select(lit, self.result.add(self.beta.mul(x)));
-                self.d_result = self
-                    .d_result
-                    .select(lit, self.d_result.add(self.d_beta.mul(x)));
-                let d_log = shadow_score(ctx, &shadow);
-                self.derivs
-                    .gather_light(lit, x, self.beta, (d_log, L::ZERO));
+                if D {
+                    self.d_result = self
+                        .d_result
+                        .select(lit, self.d_result.add(self.d_beta.mul(x)));
+                    let d_log = shadow_score(ctx, &shadow);
+                    self.derivs
+                        .gather_light(lit, x, self.beta, (d_log, L::ZERO));
+                }
             }
         }
         // The scalar path draws the BSDF's 1-D sample (the lobe's choice) before the 2-D
@@ -716,8 +766,10 @@ impl PacketPaths {
         }
         // Weight f cos / pdf = ρ.
         self.beta = self.beta.select(front, self.beta.mul(rho));
-        self.d_beta = self.d_beta.select(front, self.d_beta.mul(rho));
-        self.derivs.scale(front, rho);
+        if D {
+            self.d_beta = self.d_beta.select(front, self.d_beta.mul(rho));
+            self.derivs.scale(front, rho);
+        }
         self.depth = front.blend(self.depth + L::ONE, self.depth);
         self.crossings = at_surface.blend(L::ZERO, self.crossings);
         self.specular = at_surface.blend(L::ZERO, self.specular);

@@ -423,6 +423,9 @@ pub struct PacketSettings {
     /// The power tests' wrong derivative: the shadow rays' ∂ ln T left out
     /// (`MediumParams::without_shadow_term`).
     pub without_shadow_term: bool,
+    /// Whether any derivative is estimated (dβ, dσ, dg): a plain render's paths carry
+    /// none (`PacketPaths`' instance without).
+    pub derivatives: bool,
 }
 
 impl PacketSettings {
@@ -447,6 +450,7 @@ impl PacketSettings {
                 settings.gradient,
                 Gradient::Medium { params, .. } if params.without_shadow_term
             ),
+            derivatives: !matches!(settings.gradient, Gradient::None),
         }
     }
 }

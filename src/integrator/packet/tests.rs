@@ -8,7 +8,7 @@ use crate::integrator::volpath::{self, Gradient, MediumParams, PathSettings};
 /// Two media spheres under a sky: a grey forward-scattering one and a chromatic
 /// backward-scattering one (σ_t of its channels within a factor 4: every channel's
 /// variance stays finite with the hero's sampling).
-const TWO_SPHERES: &str = r#"<scene version="3.0.0">
+pub(super) const TWO_SPHERES: &str = r#"<scene version="3.0.0">
     <integrator type="volpath"><integer name="rr_depth" value="3"/></integrator>
     <sensor type="perspective"><film type="hdrfilm">
         <integer name="width" value="4"/><integer name="height" value="4"/></film></sensor>
@@ -28,7 +28,7 @@ const TWO_SPHERES: &str = r#"<scene version="3.0.0">
 /// The two spheres on a diffuse floor (touching the grey one) beside a diffuse ball,
 /// lit by a point light, a directional light and the sky: emitter samples from medium
 /// and surface vertices, shadow rays through media and blocked by surfaces.
-fn lit_spheres() -> String {
+pub(super) fn lit_spheres() -> String {
     TWO_SPHERES.replace(
         "<emitter type=\"constant\">",
         r#"<shape type="rectangle"><transform name="to_world"><scale value="3"/>
@@ -46,7 +46,7 @@ fn lit_spheres() -> String {
 }
 
 /// Rays from the origin into the lit scene: the media spheres, the floor, the ball.
-fn lit_rays() -> Vec<Vec3A> {
+pub(super) fn lit_rays() -> Vec<Vec3A> {
     [
         (-0.15, 0.0),
         (-0.22, 0.08),
@@ -63,7 +63,7 @@ fn lit_rays() -> Vec<Vec3A> {
 /// A chromatic medium cube and a grey medium sphere on a floor, lit by an area light
 /// (seen directly by one of the rays), a point light and the sky: boxes, area-light
 /// samples and hits with their MIS weights.
-fn box_and_area_light() -> String {
+pub(super) fn box_and_area_light() -> String {
     lit_spheres()
         .replace(
             r#"<shape type="sphere"><point name="center" x="0.6" y="0.1" z="4.5"/>
@@ -83,7 +83,7 @@ fn box_and_area_light() -> String {
 /// The camera in a chromatic fog filling a large sphere, a diffuse cube and a small
 /// sphere light in the fog, the sky outside: surfaces inside a medium, the camera in
 /// one, and an area light seen through it (counted in expectation).
-const FOG: &str = r#"<scene version="3.0.0">
+pub(super) const FOG: &str = r#"<scene version="3.0.0">
     <integrator type="volpath"><integer name="rr_depth" value="3"/></integrator>
     <medium type="homogeneous" id="fog">
         <rgb name="sigma_t" value="0.3, 0.4, 0.5"/><float name="albedo" value="0.8"/>
@@ -103,7 +103,7 @@ const FOG: &str = r#"<scene version="3.0.0">
 
 /// Rays from the camera in the fog: the cube (centre and edge), the light, the fog
 /// beside them, and away from everything (out to the sky through the fog).
-fn fog_rays() -> Vec<Vec3A> {
+pub(super) fn fog_rays() -> Vec<Vec3A> {
     [
         (0.0, 0.0, 1.0),
         (0.18, 0.1, 1.0),
@@ -151,7 +151,7 @@ const CLOUD: &str = r#"<scene version="3.0.0">
 </scene>"#;
 
 /// [`CLOUD`] with its density scaled by `scale`, its grids written beside it.
-fn cloud(name: &str, scale: f32) -> Scene {
+pub(super) fn cloud(name: &str, scale: f32) -> Scene {
     use crate::medium::grid::write_vol;
     let dir = std::env::temp_dir().join(format!("mediareg_packet_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -172,7 +172,7 @@ fn cloud(name: &str, scale: f32) -> Scene {
 }
 
 /// Rays into the cloud (centre, edge, corner), the floor in its shadow and beside it.
-fn cloud_rays() -> Vec<Vec3A> {
+pub(super) fn cloud_rays() -> Vec<Vec3A> {
     [
         (0.0, 0.0),
         (0.1, 0.08),
@@ -185,13 +185,13 @@ fn cloud_rays() -> Vec<Vec3A> {
     .collect()
 }
 
-fn load_xml(name: &str, xml: &str) -> Scene {
+pub(super) fn load_xml(name: &str, xml: &str) -> Scene {
     crate::integrator::scene_from_xml("packet", name, xml)
 }
 
 /// Rays from the origin: into the grey sphere (centre and rim), the chromatic one,
 /// past both (between them), and away from both.
-fn rays() -> Vec<Vec3A> {
+pub(super) fn rays() -> Vec<Vec3A> {
     [
         (-0.15, 0.0),
         (-0.22, 0.08),
@@ -208,7 +208,7 @@ fn rays() -> Vec<Vec3A> {
 /// The box scene with its grey medium behind glass (a smooth dielectric of index 1.5):
 /// Fresnel's choice, refraction into and out of the medium, total internal reflection,
 /// η in the roulette, emitters met after delta vertices counted in full.
-fn glass_and_area_light() -> String {
+pub(super) fn glass_and_area_light() -> String {
     box_and_area_light().replacen(
         r#"<bsdf type="null"/>"#,
         r#"<bsdf type="dielectric"><float name="int_ior" value="1.5"/></bsdf>"#,
@@ -218,7 +218,7 @@ fn glass_and_area_light() -> String {
 
 /// Rays into the box scene: the sphere, the cube (centre and edge), the floor, the
 /// area light, the ball.
-fn box_rays() -> Vec<Vec3A> {
+pub(super) fn box_rays() -> Vec<Vec3A> {
     let light = Vec3A::new(-0.3, 1.4, 3.6).normalize();
     [
         (-0.15, 0.0),
@@ -298,7 +298,7 @@ fn scalar_samples(
 }
 
 /// `n` packet samples along `d` (jittered: [`direction`]), [`WIDTH`] lanes at a time.
-fn packet_samples(
+pub(super) fn packet_samples(
     scene: &Scene,
     ps: &PacketScene,
     settings: &PacketSettings,
