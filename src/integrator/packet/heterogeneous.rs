@@ -238,6 +238,7 @@ impl Tracker {
 
 /// Delta tracking from `o` along unit `d` up to `tmax` for the lanes of `mask`
 /// (`HeterogeneousMedium::sample_flight`).
+#[inline(always)]
 pub fn sample_flight(
     h: &HeterogeneousMedium,
     o: V3,
