@@ -1,10 +1,12 @@
 //! What the integrators share about emitters: sampling one from a surface point
-//! (Mitsuba's `sample_emitter_direction` with the BSDF's evaluation and the shadow ray)
-//! and skipping emitter shapes for `hide_emitters`.
+//! (Mitsuba's `sample_emitter_direction` with the BSDF's evaluation and the shadow ray),
+//! the MIS weight of an emitter a path meets, and skipping emitter shapes for
+//! `hide_emitters`.
 
 use glam::{Vec2, Vec3, Vec3A};
 
 use crate::geometry::{offset_point, SHADOW_EPSILON};
+use crate::sampling::mis_weight;
 use crate::scene::{Scene, SurfaceInteraction};
 
 /// Emitter sampling at a surface point, before MIS: the emitter-sampled direction's
@@ -57,6 +59,29 @@ pub(crate) fn sample_light_at_surface(
         bsdf_pdf,
         delta: es.delta,
     })
+}
+
+/// The emission of emitter `ei` that a path meets at `p_end` (normal `n_end`; the
+/// environment: the last vertex and a zero normal) along `d`, MIS-weighted against
+/// emitter sampling at the vertex it last scattered at, `from` (whose direction's pdf
+/// is `from_pdf`): the power heuristic of `from_pdf` against the emitter's solid-angle
+/// pdf times its selection probability (Mitsuba's volpath). In `full` where emitter
+/// sampling could not have made the path (the camera ray, after a specular chain).
+#[inline]
+pub(crate) fn emission_met(
+    scene: &Scene,
+    ei: u32,
+    (p_end, n_end, d): (Vec3A, Vec3A, Vec3A),
+    (from, from_pdf): (Vec3A, f32),
+    full: bool,
+) -> Vec3 {
+    let e = &scene.emitters[ei as usize];
+    if full {
+        return e.eval(n_end, d);
+    }
+    let (le, pdf) = e.eval_and_pdf(from, p_end, n_end, d, &scene.geometries);
+    let em_pdf = pdf * scene.emitter_selection.pdf(from, ei as usize);
+    le * mis_weight(from_pdf, em_pdf)
 }
 
 /// The first hit along (o, d) that is not an emitter shape (`hide_emitters` on the

@@ -56,9 +56,10 @@ mod shapes;
 use glam::{Vec3, Vec3A};
 use wide::CmpEq;
 
+use super::emitters::emission_met;
 use super::sample::PathSample;
 use crate::geometry::RAY_EPSILON;
-use crate::sampling::{mis_weight, Pcg32};
+use crate::sampling::Pcg32;
 use crate::scene::Scene;
 pub use lanes::WIDTH;
 use lanes::{lanes_of, mask_of, L, V3};
@@ -108,11 +109,10 @@ pub fn sample_packet(
 }
 
 /// The emission the lanes of `mask` see on the surfaces `surface` they met at
-/// `(p, n)` along `d`, weighted as volpath's `emission_seen` weighs it: in full at
-/// depth 0 (none where emitters are hidden) and after delta vertices only (`specular`),
-/// else by MIS against emitter sampling from
-/// the last vertex `(last_p, last_pdf)`. Per lane by the scalar code: an emitter is
-/// met rarely.
+/// `(p, n)` along `d`, weighted as volpath weighs it (`emitters::emission_met`): in
+/// full at depth 0 (none where emitters are hidden) and after delta vertices only
+/// (`specular`), else by MIS against emitter sampling from the last vertex
+/// `(last_p, last_pdf)`. Per lane by the scalar code: an emitter is met rarely.
 fn surface_emission(
     scene: &Scene,
     ps: &PacketScene,
@@ -133,16 +133,9 @@ fn surface_emission(
         if depth[k] == 0.0 && ps.hide_emitters {
             continue;
         }
-        let e = &scene.emitters[ei as usize];
-        let (pk, nk, dk) = (p.lane_a(k), n.lane_a(k), d.lane_a(k));
-        le[k] = if depth[k] == 0.0 || specular >> k & 1 == 1 {
-            e.eval(nk, dk)
-        } else {
-            let from = last_p.lane_a(k);
-            let (l, pdf) = e.eval_and_pdf(from, pk, nk, dk, &scene.geometries);
-            let em_pdf = pdf * scene.emitter_selection.pdf(from, ei as usize);
-            l * mis_weight(last_pdf[k], em_pdf)
-        };
+        let view = (p.lane_a(k), n.lane_a(k), d.lane_a(k));
+        let full = depth[k] == 0.0 || specular >> k & 1 == 1;
+        le[k] = emission_met(scene, ei, view, (last_p.lane_a(k), last_pdf[k]), full);
     }
     V3::from_fn(|k| le[k])
 }

@@ -51,6 +51,7 @@
 
 use glam::{Vec3, Vec3A};
 
+use super::emitters::emission_met;
 use super::sample::PathSample;
 use crate::geometry::SHADOW_EPSILON;
 use crate::medium::differential::DifferentialTracking;
@@ -195,14 +196,9 @@ fn emission_seen(
     if depth == 0 && scene.integrator.hide_emitters {
         return Vec3::ZERO;
     }
-    let e = &scene.emitters[ei as usize];
     let (p_end, n_end) = hit.map_or((last.p, Vec3A::ZERO), |h| (h.p, h.sh_frame.n));
-    if depth == 0 || specular_chain {
-        return e.eval(n_end, ray_d);
-    }
-    let (le, pdf) = e.eval_and_pdf(last.p, p_end, n_end, ray_d, &scene.geometries);
-    let em_pdf = pdf * scene.emitter_selection.pdf(last.p, ei as usize);
-    le * mis_weight(last.pdf, em_pdf)
+    let full = depth == 0 || specular_chain;
+    emission_met(scene, ei, (p_end, n_end, ray_d), (last.p, last.pdf), full)
 }
 
 /// Which derivative to estimate beside the radiance.
