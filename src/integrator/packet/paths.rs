@@ -206,6 +206,16 @@ impl<const D: bool> PacketPaths<D> {
         self.write(out);
     }
 
+    /// dβ and the medium's derivative weights times `w` in the lanes of `mask`, where β
+    /// takes `w` (nothing in the instance without derivatives).
+    #[inline(always)]
+    fn scale_derivatives(&mut self, mask: L, w: V3) {
+        if D {
+            self.d_beta = self.d_beta.select(mask, self.d_beta.mul(w));
+            self.derivs.scale(mask, w);
+        }
+    }
+
     /// Each lane's hero channel of `v`.
     #[inline(always)]
     fn hero_of(&self, v: V3) -> L {
@@ -449,10 +459,7 @@ impl<const D: bool> PacketPaths<D> {
                 let f =
                     heterogeneous::sample_flight(h, self.o, self.d, ends.t_end, in_medium, rngs);
                 self.beta = self.beta.select(in_medium, self.beta.mul(f.weight));
-                if D {
-                    self.d_beta = self.d_beta.select(in_medium, self.d_beta.mul(f.weight));
-                    self.derivs.scale(in_medium, f.weight);
-                }
+                self.scale_derivatives(in_medium, f.weight);
                 (in_medium & f.collided, f.t, f.albedo)
             }
             None => {
@@ -468,7 +475,7 @@ impl<const D: bool> PacketPaths<D> {
                     let w_collided = collision_weight(tr, m.sigma, m.sigma_hero, tr_hero);
                     let w_passed = pass_weight(tr, tr_hero);
                     let w = w_passed.select(collided, w_collided);
-                    self.derivs.scale(in_medium, w);
+                    self.scale_derivatives(in_medium, w);
                     if self.derivs.sigma_on() {
                         // ∂f/∂σ_t over the same p: T (1 − σ_t t) at a collision, −t T
                         // passing (volpath's `MediumParams`).
@@ -478,9 +485,6 @@ impl<const D: bool> PacketPaths<D> {
                             .add_sigma(in_medium & m.chosen_sigma, self.beta, dw);
                     }
                     self.beta = self.beta.select(in_medium, self.beta.mul(w));
-                    if D {
-                        self.d_beta = self.d_beta.select(in_medium, self.d_beta.mul(w));
-                    }
                     self.r_u = self.r_u.select(in_medium, self.r_u.mul(w));
                 }
                 if ctx.ps.grey && self.derivs.sigma_on() {
@@ -669,10 +673,7 @@ impl<const D: bool> PacketPaths<D> {
         let ok = at_boundary & b.pdf.cmp_gt(L::ZERO);
         self.alive &= !(at_boundary & !ok);
         self.beta = self.beta.select(ok, self.beta.mul(b.weight));
-        if D {
-            self.d_beta = self.d_beta.select(ok, self.d_beta.mul(b.weight));
-            self.derivs.scale(ok, b.weight);
-        }
+        self.scale_derivatives(ok, b.weight);
         self.eta = ok.blend(self.eta * b.eta, self.eta);
         self.depth = ok.blend(self.depth + L::ONE, self.depth);
         self.crossings = ok.blend(L::ZERO, self.crossings);
@@ -766,10 +767,7 @@ impl<const D: bool> PacketPaths<D> {
         }
         // Weight f cos / pdf = ρ.
         self.beta = self.beta.select(front, self.beta.mul(rho));
-        if D {
-            self.d_beta = self.d_beta.select(front, self.d_beta.mul(rho));
-            self.derivs.scale(front, rho);
-        }
+        self.scale_derivatives(front, rho);
         self.depth = front.blend(self.depth + L::ONE, self.depth);
         self.crossings = at_surface.blend(L::ZERO, self.crossings);
         self.specular = at_surface.blend(L::ZERO, self.specular);

@@ -150,24 +150,28 @@ const CLOUD: &str = r#"<scene version="3.0.0">
     <emitter type="constant"><rgb name="radiance" value="0.3, 0.35, 0.45"/></emitter>
 </scene>"#;
 
-/// [`CLOUD`] with its density scaled by `scale`, its grids written beside it.
+/// [`CLOUD`] with its density scaled by `scale`, its grids written beside it once.
 pub(super) fn cloud(name: &str, scale: f32) -> Scene {
     use crate::medium::grid::write_vol;
-    let dir = std::env::temp_dir().join(format!("mediareg_packet_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let sigma_t: Vec<f32> = (0..64)
-        .flat_map(|i| {
-            let v = 0.5 + ((i * 7) % 11) as f32 * 0.5;
-            [v, 1.5 * v, 0.8 * v]
-        })
-        .collect();
-    let albedo = [0.9, 0.6, 0.8, 0.95, 0.7, 0.85, 0.5, 0.99];
-    for (file, data, res, channels) in [
-        ("packet_cloud_sigma_t.vol", &sigma_t[..], [4, 4, 4], 3),
-        ("packet_cloud_albedo.vol", &albedo[..], [2, 2, 2], 1),
-    ] {
-        std::fs::write(dir.join(file), write_vol(res, channels, data)).unwrap();
-    }
+    // Once: a test rewriting the files while another loads them read a torn grid.
+    static GRIDS: std::sync::Once = std::sync::Once::new();
+    GRIDS.call_once(|| {
+        let dir = std::env::temp_dir().join(format!("mediareg_packet_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let sigma_t: Vec<f32> = (0..64)
+            .flat_map(|i| {
+                let v = 0.5 + ((i * 7) % 11) as f32 * 0.5;
+                [v, 1.5 * v, 0.8 * v]
+            })
+            .collect();
+        let albedo = [0.9, 0.6, 0.8, 0.95, 0.7, 0.85, 0.5, 0.99];
+        for (file, data, res, channels) in [
+            ("packet_cloud_sigma_t.vol", &sigma_t[..], [4, 4, 4], 3),
+            ("packet_cloud_albedo.vol", &albedo[..], [2, 2, 2], 1),
+        ] {
+            std::fs::write(dir.join(file), write_vol(res, channels, data)).unwrap();
+        }
+    });
     load_xml(name, &CLOUD.replace("$scale", &scale.to_string()))
 }
 
