@@ -16,6 +16,7 @@ mod backend;
 mod brute_force;
 mod build;
 mod bvh;
+mod bvh_build;
 mod embree;
 pub mod embree_api;
 mod hit;

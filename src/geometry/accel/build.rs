@@ -9,7 +9,8 @@ use obvhs::aabb::Aabb;
 
 use super::backend::{Backend, EMBREE_MIN_TRIANGLES};
 use super::brute_force::BRUTE_FORCE_PRIMS;
-use super::bvh::{self, Bvh};
+use super::bvh::Bvh;
+use super::bvh_build;
 use super::embree::{build_quality, EmbreeScene, MeshRef};
 use super::embree_api;
 use super::lanes::{self, TriangleLanes};
@@ -119,10 +120,8 @@ impl Accel {
         // tested one by one (in input order). Its leaf order is the primitives' order,
         // for triangles in lanes too (the first of two hits at one distance wins).
         // The boxes only while obvhs builds (Embree boxes the triangles itself).
-        let cwbvh = (embree.is_none() && prims.len() > BRUTE_FORCE_PRIMS).then(|| {
-            let aabbs: Vec<Aabb> = prims.iter().map(|p| prim_aabb(shapes, p)).collect();
-            bvh::build(&aabbs)
-        });
+        let cwbvh = (embree.is_none() && prims.len() > BRUTE_FORCE_PRIMS)
+            .then(|| bvh_build::build(prims.len(), |i| prim_aabb(shapes, &prims[i])));
         if let Some(b) = &cwbvh {
             prims = b
                 .primitive_indices
@@ -165,7 +164,7 @@ impl Accel {
         // MEDIAREG_ACCEL asked for obvhs) is told what Embree would save.
         let warning = match warning {
             None if cwbvh.is_some()
-                && n_triangles >= bvh::LARGE_MESH
+                && n_triangles >= bvh_build::LARGE_MESH
                 && backend == Backend::Obvhs =>
             {
                 let asked = matches!(embree_api::request(), Ok(embree_api::Request::Obvhs));

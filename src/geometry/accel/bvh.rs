@@ -3,14 +3,9 @@
 //! leaf order). It holds triangles only, or, where analytic shapes are many
 //! ([`super::build::SEPARATE_ANALYTIC`]), them too ("mixed").
 
-use std::time::Duration;
-
 use glam::Vec3A;
-use obvhs::aabb::Aabb;
-use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::Ray as BvhRay;
-use obvhs::BvhBuildParams;
 
 use super::hit::{Crossing, Crossings, Hit};
 use super::node::{node_hits, traversal_ray};
@@ -22,35 +17,6 @@ pub(super) struct Bvh {
     /// Whether it holds analytic shapes too (else triangles only).
     pub mixed: bool,
 }
-
-/// obvhs's BVH over the primitives' boxes (its `primitive_indices` give the leaf order).
-pub(super) fn build(aabbs: &[Aabb]) -> CwBvh {
-    build_cwbvh(
-        aabbs,
-        BvhBuildParams {
-            // Pre-splitting needs the triangles, not boxes.
-            pre_split: false,
-            ..build_params(aabbs.len())
-        },
-        &mut Duration::default(),
-    )
-}
-
-/// The build for `primitives`: the slowest (most reinsertion) below
-/// [`LARGE_MESH`] (~10% faster renders of the Bunny than `medium_build`, for 0.25 s
-/// more on a 100k-triangle mesh), `fast_build` from there on, where the slowest build's
-/// reinsertion grows to most of the load (on a displaced sphere of 5M triangles 43 of 45
-/// s) and rendered no faster (docs/performance.md, "Large meshes without Embree").
-fn build_params(primitives: usize) -> BvhBuildParams {
-    match primitives >= LARGE_MESH {
-        true => BvhBuildParams::fast_build(),
-        false => BvhBuildParams::very_slow_build(),
-    }
-}
-
-/// From this many triangles a mesh is large: a quicker build (here and in Embree's
-/// backend), and a render without Embree says what Embree would save.
-pub(crate) const LARGE_MESH: usize = 1_000_000;
 
 impl Bvh {
     /// Closest-hit traversal (obvhs's `ray_traverse` with [`node_hits`] as its node

@@ -129,9 +129,9 @@ fn ray(o: Vec3A, d: Vec3A, tmax: f32) -> sys::Ray {
     }
 }
 
-/// From this many triangles on ([`super::bvh::LARGE_MESH`]), Embree builds at medium
+/// From this many triangles on ([`super::bvh_build::LARGE_MESH`]), Embree builds at medium
 /// quality.
-pub(crate) const MEDIUM_BUILD_FROM: usize = super::bvh::LARGE_MESH;
+pub(crate) const MEDIUM_BUILD_FROM: usize = super::bvh_build::LARGE_MESH;
 
 /// The build quality for a scene of `triangles`: high (spatial splits, as Mitsuba 3)
 /// where the build is quick, medium for large scanned meshes, where the high build was
