@@ -202,8 +202,7 @@ impl Accel {
 fn large_mesh_hint(triangles: usize, why: &str) -> String {
     format!(
         "{:.1}M triangles are cast with the built-in BVH, Embree 3 not loading ({why}): \
-         with Embree this scale loads in about a third of the time and half the memory and \
-         renders about 1.5x faster; {}",
+         with Embree a mesh this large renders about twice as fast; {}",
         triangles as f64 / 1e6,
         embree_api::INSTALL_HINT
     )
