@@ -450,3 +450,27 @@ fn bitmap_file_missing() {
 fn bitmap_reflectance_above_one() {
     expect_error("bitmap_above_one.xml", 9, &["sky.exr", "outside [0, 1]"]);
 }
+
+/// A wrong output is told before the scene loads (a large mesh loads for seconds): the
+/// output error, not the load's, for a scene whose mesh is not found without `-a`.
+#[test]
+fn output_checked_before_the_load() {
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("mitsuba_scenes/lucy.xml");
+    let run = |out: &str| {
+        let output = Command::new(env!("CARGO_BIN_EXE_mediareg"))
+            .args(["render", scene.to_str().unwrap(), "--spp", "1", "-o", out])
+            .output()
+            .unwrap();
+        assert!(!output.status.success());
+        String::from_utf8_lossy(&output.stderr).into_owned()
+    };
+    let wrong = run("/tmp/mediareg_out.png");
+    assert!(
+        wrong.contains("must end in .exr") && !wrong.contains("not found"),
+        "{wrong}"
+    );
+    // Power: with a good output the load's error is the one told.
+    let good = std::env::temp_dir().join("mediareg_output_checked.exr");
+    let load = run(good.to_str().unwrap());
+    assert!(load.contains("not found"), "{load}");
+}

@@ -197,8 +197,7 @@ pub fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
         sensor: args.sensor,
         integrator: args.integrator.clone(),
     };
-    let scene = load_scene(&args.scene, &opts, &overrides).map_err(|e| anyhow!("{e}"))?;
-
+    // The output is checked before the load, which may take seconds on a large scene.
     let out_exr = args
         .output
         .clone()
@@ -212,6 +211,8 @@ pub fn prepare(args: &SceneArgs) -> Result<(Scene, PathBuf)> {
         }
     }
     image::check_writable(&out_exr)?;
+    let scene = load_scene(&args.scene, &opts, &overrides).map_err(|e| anyhow!("{e}"))?;
+
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
