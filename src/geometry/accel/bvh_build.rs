@@ -6,7 +6,7 @@
 //! nodes: on a mesh of millions of triangles that table, the binary tree and PLOC's
 //! buffers (each touched page a fault) were most of the load's time and twice Mitsuba
 //! 3's peak memory. A large mesh is therefore cut along the Morton curve of its boxes'
-//! centres into chunks of [`CHUNK`] primitives, whose wide BVHs are built one per
+//! centres into chunks of at most [`CHUNK`] primitives, whose wide BVHs are built one per
 //! thread, and a top BVH over the chunks' boxes (one chunk a leaf) is stitched to
 //! their roots: each top leaf becomes an inner child, the chunk's root.
 
@@ -34,8 +34,13 @@ pub(super) const CHUNK: usize = 1 << 18;
 /// `primitive_indices` give the leaf order).
 pub(super) fn build(n: usize, prim_box: impl Fn(usize) -> Aabb + Sync) -> CwBvh {
     if n < LARGE_MESH {
+        // The slowest build (most reinsertion): ~10% faster renders of the Bunny than
+        // `medium_build`, for 0.25 s more on a 100k-triangle mesh. On a large mesh its
+        // reinsertion grew to most of the load (a 5M-triangle sphere: 43 of 45 s) and
+        // rendered no faster (docs/performance.md, "Large meshes without Embree"): its
+        // chunks are `fast_build`s.
         let aabbs: Vec<Aabb> = (0..n).map(&prim_box).collect();
-        return build_one(&aabbs, build_params(n));
+        return build_one(&aabbs, BvhBuildParams::very_slow_build());
     }
     build_chunked(n, prim_box, CHUNK)
 }
@@ -48,19 +53,6 @@ fn build_one(aabbs: &[Aabb], params: BvhBuildParams) -> CwBvh {
         ..params
     };
     build_cwbvh(aabbs, params, &mut Duration::default())
-}
-
-/// The build for `primitives`: the slowest (most reinsertion) below
-/// [`LARGE_MESH`] (~10% faster renders of the Bunny than `medium_build`, for 0.25 s
-/// more on a 100k-triangle mesh), `fast_build` from there on (and for a large mesh's
-/// chunks), where the slowest build's reinsertion grows to most of the load (on a
-/// displaced sphere of 5M triangles 43 of 45 s) and rendered no faster
-/// (docs/performance.md, "Large meshes without Embree").
-fn build_params(primitives: usize) -> BvhBuildParams {
-    match primitives >= LARGE_MESH {
-        true => BvhBuildParams::fast_build(),
-        false => BvhBuildParams::very_slow_build(),
-    }
 }
 
 /// The BVH of a large mesh from chunks of at most `max_chunk` primitives, as many as
@@ -196,7 +188,9 @@ impl Stitched<'_> {
                 children.push(Child::Top(node.child_base_idx as usize + inner));
                 inner += 1;
             } else {
-                // One chunk a leaf: its slot offset in the low 5 bits.
+                // One chunk a leaf (the top's leaves hold one primitive): its slot
+                // offset in the low 5 bits, the unary count 1 in the high 3.
+                debug_assert_eq!(meta >> 5, 0b001);
                 let leaf = node.primitive_base_idx as usize + (meta & 0b1_1111) as usize;
                 children.push(Child::Chunk(self.top.primitive_indices[leaf] as usize));
                 node.imask |= 1 << slot;
