@@ -12,7 +12,7 @@
 
 use std::time::Duration;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::node::CwBvhNode;
@@ -65,18 +65,15 @@ pub(super) fn build_chunked(
 ) -> CwBvh {
     let chunk = n.div_ceil(n.div_ceil(max_chunk.max(1)).max(1)).max(1);
     let order = morton_order(n, &prim_box);
-    let chunks: Vec<(CwBvh, Aabb)> = order
+    let chunks: Vec<CwBvh> = order
         .par_chunks(chunk)
         .map(|ids| {
             let aabbs: Vec<Aabb> = ids.iter().map(|&i| prim_box(i as usize)).collect();
-            let mut bounds = Aabb::empty();
-            for b in &aabbs {
-                bounds = bounds.union(b);
-            }
-            (build_one(&aabbs, BvhBuildParams::fast_build()), bounds)
+            build_one(&aabbs, BvhBuildParams::fast_build())
         })
         .collect();
-    let boxes: Vec<Aabb> = chunks.iter().map(|c| c.1).collect();
+    // A chunk's box is its root's: the union of its primitives' boxes.
+    let boxes: Vec<Aabb> = chunks.iter().map(|c| c.total_aabb).collect();
     let top = (chunks.len() > 1).then(|| {
         let params = BvhBuildParams {
             max_prims_per_leaf: 1,
@@ -84,12 +81,7 @@ pub(super) fn build_chunked(
         };
         build_one(&boxes, params)
     });
-    stitch(
-        top,
-        chunks.into_iter().map(|c| c.0).collect(),
-        &order,
-        chunk,
-    )
+    stitch(top, chunks, &order, chunk)
 }
 
 /// The primitives' indices in the Morton order of their boxes' centres (ties by index).
@@ -101,14 +93,14 @@ fn morton_order(n: usize, prim_box: &(impl Fn(usize) -> Aabb + Sync)) -> Vec<u32
     let (lo, hi) = (0..n)
         .into_par_iter()
         .fold(
-            || (glam::Vec3A::INFINITY, glam::Vec3A::NEG_INFINITY),
+            || (Vec3A::INFINITY, Vec3A::NEG_INFINITY),
             |(lo, hi), i| {
                 let c = centre(i);
                 (lo.min(c), hi.max(c))
             },
         )
         .reduce(
-            || (glam::Vec3A::INFINITY, glam::Vec3A::NEG_INFINITY),
+            || (Vec3A::INFINITY, Vec3A::NEG_INFINITY),
             |a, b| (a.0.min(b.0), a.1.max(b.1)),
         );
     let lo = lo.as_dvec3();
@@ -238,7 +230,6 @@ mod tests {
     use super::*;
     use crate::geometry::accel::triangle::LeafTriangle;
     use crate::sampling::Pcg32;
-    use glam::Vec3A;
     use obvhs::ray::{Ray, RayHit};
 
     /// `n` small random triangles in the unit cube.
