@@ -13,6 +13,8 @@
 
 use glam::{Affine3A, Vec3, Vec3A};
 
+use crate::simd::{Float, Gather, Vector3};
+
 /// The `.vol` header's size: "VOL", version, encoding, 3 resolutions, channels, bbox.
 pub const VOL_HEADER_BYTES: usize = 3 + 1 + 4 + 3 * 4 + 4 + 6 * 4;
 
@@ -32,20 +34,20 @@ pub enum Wrap {
 }
 
 impl Wrap {
+    /// The voxel that integral coordinate `i` reads along an axis of `n` voxels (as a
+    /// float: exact below 2^24). Clamped to the axis in every mode, so that a NaN
+    /// coordinate (a point at infinity) reads the first voxel instead of outside.
     #[inline(always)]
-    fn index(self, i: i32, n: i32) -> usize {
-        (match self {
-            Wrap::Clamp => i.clamp(0, n - 1),
+    fn index<F: Gather>(self, i: F, n: f32) -> F {
+        let i = match self {
+            Wrap::Clamp => i,
             Wrap::Repeat => i.rem_euclid(n),
             Wrap::Mirror => {
-                let m = i.rem_euclid(2 * n);
-                if m >= n {
-                    2 * n - 1 - m
-                } else {
-                    m
-                }
+                let m = i.rem_euclid(2.0 * n);
+                F::select(m.ge(F::of(n as f64)), F::of((2.0 * n - 1.0) as f64) - m, m)
             }
-        }) as usize
+        };
+        i.max(F::zero()).min(F::of((n - 1.0) as f64))
     }
 }
 
@@ -243,11 +245,49 @@ impl Volume {
     pub fn eval(&self, p: Vec3A) -> Vec3 {
         match &self.source {
             Source::Const(v) => *v,
-            Source::Grid { grid, filter, wrap } => {
-                let q = Vec3::from(self.to_local.transform_point3a(p));
-                lookup(grid, *filter, *wrap, q)
+            Source::Grid { .. } => {
+                let v = self.eval_local(self.to_local.transform_point3a(p).to_array(), true);
+                Vec3::new(v.x, v.y, v.z)
             }
         }
+    }
+
+    /// The values at world points `p` in the lanes of `mask` (0 in the others, or the
+    /// constant): [`Volume::eval`] over any number type.
+    #[inline(always)]
+    pub fn eval_at<F: Gather>(&self, p: Vector3<F>, mask: F::Mask) -> Vector3<F> {
+        match &self.source {
+            Source::Const(v) => Vector3::splat(*v),
+            Source::Grid { .. } => self.eval_local(self.local_point(p), mask),
+        }
+    }
+
+    /// The values at points `q` of the unit cube (`local_point`), as `eval_at`.
+    #[inline(always)]
+    pub fn eval_local<F: Gather>(&self, q: [F; 3], mask: F::Mask) -> Vector3<F> {
+        match &self.source {
+            Source::Const(v) => Vector3::splat(*v),
+            Source::Grid { grid, filter, wrap } => lookup(grid, *filter, *wrap, q, mask),
+        }
+    }
+
+    /// World points `p` in the volume's unit cube, per axis, rounded as glam's
+    /// `Affine3A::transform_point3a` rounds them (the products summed x, y, z, then
+    /// the translation); `Volume::eval` transforms its one point by glam itself.
+    #[inline(always)]
+    pub fn local_point<F: Float>(&self, p: Vector3<F>) -> [F; 3] {
+        let m = &self.to_local;
+        std::array::from_fn(|k| {
+            let (a, b, c) = (
+                m.matrix3.x_axis[k],
+                m.matrix3.y_axis[k],
+                m.matrix3.z_axis[k],
+            );
+            F::of(a as f64) * p.x
+                + F::of(b as f64) * p.y
+                + F::of(c as f64) * p.z
+                + F::of(m.translation[k] as f64)
+        })
     }
 
     /// The same volume (placement, filter, wrap, channels) holding `data` at resolution
@@ -287,8 +327,8 @@ impl Volume {
                         (y as f32 + 0.5) / res[1] as f32,
                         (z as f32 + 0.5) / res[2] as f32,
                     );
-                    let v = lookup(grid, filter, *wrap, q);
-                    out.extend_from_slice(&v.to_array()[..grid.channels]);
+                    let v = lookup(grid, filter, *wrap, q.to_array(), true);
+                    out.extend_from_slice(&[v.x, v.y, v.z][..grid.channels]);
                 }
             }
         }
@@ -304,7 +344,7 @@ impl Volume {
         let Source::Grid { grid, filter, wrap } = &self.source else {
             return;
         };
-        let q = Vec3::from(self.to_local.transform_point3a(p));
+        let q = self.to_local.transform_point3a(p).to_array();
         let mut add = |i: usize, k: f32| {
             if grid.channels == 1 {
                 grad[i] += (w.x + w.y + w.z) * k;
@@ -327,42 +367,42 @@ impl Volume {
 }
 
 // The voxels a lookup reads and their weights, for the lookup to sum along and its
-// adjoint (`Volume::scatter`) to add along, so that the two agree by construction.
+// adjoint (`Volume::scatter`) to add along, so that the two agree by construction;
+// written once over the number type (`simd::Gather`): one path, or lanes.
 
 /// The voxel (its data offset over the channel count) that `nearest` reads at local
 /// point `q`.
 #[inline(always)]
-fn nearest_voxel(g: &GridData, wrap: Wrap, q: Vec3) -> usize {
-    let n = [g.res[0] as i32, g.res[1] as i32, g.res[2] as i32];
-    let x = (q * Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32)).floor();
-    let i = |k: usize, v: f32| wrap.index(v as i32, n[k]);
-    i(0, x.x) + i(1, x.y) * g.res[0] + i(2, x.z) * g.res[0] * g.res[1]
+fn nearest_voxel<F: Gather>(g: &GridData, wrap: Wrap, q: [F; 3]) -> F::Index {
+    let i = |k: usize, stride: usize| {
+        let n = g.res[k] as f32;
+        let x = (q[k] * F::of(n as f64)).floor();
+        wrap.index(x, n).index(stride)
+    };
+    i(0, 1) + i(1, g.res[0]) + i(2, g.res[0] * g.res[1])
 }
 
 /// The 8 voxels `trilinear` reads at local point `q` and their weights, x fastest, then
-/// y, then z (the order the lookup sums in).
+/// y, then z (the order the lookup sums in): `x = q · res − 0.5` split into ⌊x⌋ and
+/// weights `x − ⌊x⌋`.
 #[inline(always)]
-fn trilinear_corners(g: &GridData, wrap: Wrap, q: Vec3) -> ([usize; 8], [f32; 8]) {
-    let n = [g.res[0] as i32, g.res[1] as i32, g.res[2] as i32];
-    let x = q * Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32) - 0.5;
-    let f = x.floor();
-    let w1 = x - f;
-    let w0 = Vec3::ONE - w1;
-    let i0 = [f.x as i32, f.y as i32, f.z as i32];
-    // Offsets along each axis (the voxel index times its stride).
-    let (sy, sz) = (g.res[0], g.res[0] * g.res[1]);
-    let ix = [wrap.index(i0[0], n[0]), wrap.index(i0[0] + 1, n[0])];
-    let iy = [
-        wrap.index(i0[1], n[1]) * sy,
-        wrap.index(i0[1] + 1, n[1]) * sy,
-    ];
-    let iz = [
-        wrap.index(i0[2], n[2]) * sz,
-        wrap.index(i0[2] + 1, n[2]) * sz,
-    ];
-    let (wx, wy, wz) = ([w0.x, w1.x], [w0.y, w1.y], [w0.z, w1.z]);
-    let mut index = [0; 8];
-    let mut weight = [0.0; 8];
+fn trilinear_corners<F: Gather>(g: &GridData, wrap: Wrap, q: [F; 3]) -> ([F::Index; 8], [F; 8]) {
+    // Per axis: the two voxels' offsets (the voxel index times its stride) and weights.
+    #[inline(always)]
+    fn axis<F: Gather>(q: F, n: usize, stride: usize, wrap: Wrap) -> ([F::Index; 2], [F; 2]) {
+        let n = n as f32;
+        let x = q * F::of(n as f64) - F::of(0.5);
+        let f = x.floor();
+        let w1 = x - f;
+        let i0 = wrap.index(f, n).index(stride);
+        let i1 = wrap.index(f + F::one(), n).index(stride);
+        ([i0, i1], [F::one() - w1, w1])
+    }
+    let (ix, wx) = axis(q[0], g.res[0], 1, wrap);
+    let (iy, wy) = axis(q[1], g.res[1], g.res[0], wrap);
+    let (iz, wz) = axis(q[2], g.res[2], g.res[0] * g.res[1], wrap);
+    let mut index = [ix[0]; 8];
+    let mut weight = [F::zero(); 8];
     for c in 0..2 {
         for b in 0..2 {
             for a in 0..2 {
@@ -374,12 +414,23 @@ fn trilinear_corners(g: &GridData, wrap: Wrap, q: Vec3) -> ([usize; 8], [f32; 8]
     (index, weight)
 }
 
-/// The grid's value at local point `q` (unit cube coordinates).
-#[inline]
-fn lookup(g: &GridData, filter: Filter, wrap: Wrap, q: Vec3) -> Vec3 {
-    let value = |i: usize| match g.channels {
-        1 => Vec3::splat(g.data[i]),
-        _ => Vec3::new(g.data[3 * i], g.data[3 * i + 1], g.data[3 * i + 2]),
+/// The grid's value at local point `q` (unit cube coordinates), in the lanes of `mask`
+/// (0 in the others).
+#[inline(always)]
+fn lookup<F: Gather>(
+    g: &GridData,
+    filter: Filter,
+    wrap: Wrap,
+    q: [F; 3],
+    mask: F::Mask,
+) -> Vector3<F> {
+    let value = |i: F::Index| match g.channels {
+        1 => Vector3::all(F::gather(&g.data, i, 1, 0, mask)),
+        _ => Vector3::new(
+            F::gather(&g.data, i, 3, 0, mask),
+            F::gather(&g.data, i, 3, 1, mask),
+            F::gather(&g.data, i, 3, 2, mask),
+        ),
     };
     match filter {
         Filter::Nearest => value(nearest_voxel(g, wrap, q)),
@@ -388,15 +439,15 @@ fn lookup(g: &GridData, filter: Filter, wrap: Wrap, q: Vec3) -> Vec3 {
             if g.channels == 1 {
                 // A scalar grid (the common density): one channel summed in the same
                 // order as the three below, so the value is the same to the bit.
-                let mut v = 0.0f32;
+                let mut v = F::zero();
                 for k in 0..8 {
-                    v += g.data[index[k]] * weight[k];
+                    v = v + F::gather(&g.data, index[k], 1, 0, mask) * weight[k];
                 }
-                return Vec3::splat(v);
+                return Vector3::all(v);
             }
-            let mut v = Vec3::ZERO;
+            let mut v = Vector3::all(F::zero());
             for k in 0..8 {
-                v += value(index[k]) * weight[k];
+                v = v.add(value(index[k]).scale(weight[k]));
             }
             v
         }
@@ -459,6 +510,63 @@ mod tests {
         assert_eq!(at(0.0), 1.0);
         assert_eq!(at(1.5), 3.0);
         assert_eq!(v.max, 3.0);
+    }
+
+    /// `eval_at` in lanes reads what `eval` reads on one path, to the bit: each filter
+    /// and wrap, one and three channels, points inside the cube, beyond it and far
+    /// out; a lane that is off reads 0. Power: the lanes looked up with another wrap
+    /// than the one path's are told apart.
+    #[test]
+    fn lanes_look_up_what_one_path_does() {
+        use wide::{f32x8, CmpEq};
+        let mut rng = crate::sampling::Pcg32::new(5, 6);
+        let to_world = Affine3A::from_scale_rotation_translation(
+            Vec3::new(2.0, 1.0, 3.0),
+            glam::Quat::from_rotation_y(0.4),
+            Vec3::new(-1.0, 0.5, 0.0),
+        );
+        let wraps = [Wrap::Clamp, Wrap::Repeat, Wrap::Mirror];
+        let on = f32x8::from([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0]).cmp_eq(f32x8::ONE);
+        for channels in [1, 3] {
+            let res = [5, 3, 4];
+            let data: Vec<f32> = (0..60 * channels).map(|_| rng.next_1d()).collect();
+            let g = parse_vol(&write_vol(res, channels, &data)).unwrap();
+            for filter in [Filter::Trilinear, Filter::Nearest] {
+                let volume = |wrap| {
+                    let grid = g.clone();
+                    Volume::new(Source::Grid { grid, filter, wrap }, to_world)
+                };
+                for (w, &wrap) in wraps.iter().enumerate() {
+                    let (v, other) = (volume(wrap), volume(wraps[(w + 1) % 3]));
+                    let mut told_apart = false;
+                    for i in 0..400 {
+                        let far = if i % 4 == 0 { 300.0 } else { 4.0 };
+                        let p: [Vec3A; 8] = std::array::from_fn(|_| {
+                            Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d()) * far
+                                - far / 2.0
+                        });
+                        let lanes = Vector3 {
+                            x: f32x8::from(p.map(|q| q.x)),
+                            y: f32x8::from(p.map(|q| q.y)),
+                            z: f32x8::from(p.map(|q| q.z)),
+                        };
+                        let split = |u: Vector3<f32x8>| {
+                            let (x, y, z) = (u.x.to_array(), u.y.to_array(), u.z.to_array());
+                            std::array::from_fn::<_, 8, _>(|k| Vec3::new(x[k], y[k], z[k]))
+                        };
+                        let got = split(v.eval_at(lanes, on));
+                        for k in 0..7 {
+                            let want = v.eval(p[k]);
+                            assert_eq!(got[k], want, "{channels} {filter:?} {wrap:?} {:?}", p[k]);
+                        }
+                        assert_eq!(got[7], Vec3::ZERO);
+                        let wrong = split(other.eval_at(lanes, on));
+                        told_apart |= (0..7).any(|k| wrong[k] != got[k]);
+                    }
+                    assert!(told_apart, "{channels} {filter:?} {wrap:?}: wraps alike");
+                }
+            }
+        }
     }
 
     #[test]

@@ -33,7 +33,7 @@ use super::lookup_bounds::LookupBounds;
 use super::majorant::{self, MajorantGrid};
 use super::tracking::{sample_t_maj, MajorantSegment, MajorantSegments};
 use crate::sampling::Pcg32;
-use crate::simd::{Float, Vector3};
+use crate::simd::{Float, Gather, Vector3};
 
 /// Grids of more values than this get lookup bounds: the bounds save reads that miss the
 /// cache, and cost a little more than they save on a grid that stays in it.
@@ -196,13 +196,28 @@ impl HeterogeneousMedium {
     /// lookup would give.
     #[inline]
     pub fn decided_by_bounds(&self, p: Vec3A, u: f32, major: f32) -> Option<bool> {
-        let bounds = self.bounds.as_ref()?;
-        let lo_hi = bounds.at(self.sigma_t.to_local.transform_point3a(p).to_array());
-        match bounds_decision(lo_hi, u, self.scale, major) {
+        let q = self.sigma_t.to_local.transform_point3a(p).to_array();
+        match self.decided_by_bounds_at(q, u, major, true)? {
             (true, _) => Some(true),
             (_, true) => Some(false),
             _ => None,
         }
+    }
+
+    /// [`HeterogeneousMedium::decided_by_bounds`] over any number type, at points `q`
+    /// of sigma_t's unit cube (`Volume::local_point`): of the lanes of `mask`, those the
+    /// bounds make real and those they make null; None where the medium has no bounds.
+    #[inline(always)]
+    pub fn decided_by_bounds_at<F: Gather>(
+        &self,
+        q: [F; 3],
+        u: F,
+        major: F,
+        mask: F::Mask,
+    ) -> Option<(F::Mask, F::Mask)> {
+        let lo_hi = self.bounds.as_ref()?.at_lanes(q, mask);
+        let (real, null) = bounds_decision(lo_hi, u, F::of(self.scale as f64), major);
+        Some((mask & real, mask & null))
     }
 
     /// Ratio tracking: an unbiased estimate of `exp(−∫₀^dist σ_t)` from `o` along `d`.

@@ -15,6 +15,7 @@
 
 use super::grid::{Filter, GridData, Volume};
 use super::majorant::cell_ranges;
+use crate::simd::Gather;
 
 /// Voxels a side of a cell.
 const CELL_VOXELS: usize = 8;
@@ -53,19 +54,6 @@ impl LookupBounds {
         self.res
     }
 
-    /// [lo, hi] of the cell of index (x, y, z).
-    #[inline(always)]
-    pub fn cell(&self, x: usize, y: usize, z: usize) -> [f32; 2] {
-        self.cells[(z * self.res[1] + y) * self.res[0] + x]
-    }
-
-    /// The cell index along axis `k` of a local (unit cube) coordinate: the outer cells
-    /// take everything beyond the cube, whose clamped lookups read their voxels.
-    #[inline(always)]
-    pub fn cell_index(&self, k: usize, q: f32) -> usize {
-        ((q * self.res[k] as f32).max(0.0) as usize).min(self.res[k] - 1)
-    }
-
     /// These bounds with every hi times `f` (for tests: bounds that are wrong).
     #[cfg(test)]
     pub fn with_hi_times(&self, f: f32) -> LookupBounds {
@@ -79,11 +67,25 @@ impl LookupBounds {
     /// [lo, hi] of the lookups at local point `q`.
     #[inline(always)]
     pub fn at(&self, q: [f32; 3]) -> [f32; 2] {
-        self.cell(
-            self.cell_index(0, q[0]),
-            self.cell_index(1, q[1]),
-            self.cell_index(2, q[2]),
-        )
+        self.at_lanes(q, true)
+    }
+
+    /// [lo, hi] of the lookups at local points `q` in the lanes of `mask` (0 in the
+    /// others): [`LookupBounds::at`] over any number type.
+    #[inline(always)]
+    pub fn at_lanes<F: Gather>(&self, q: [F; 3], mask: F::Mask) -> [F; 2] {
+        let cell = |k: usize, stride: usize| {
+            let n = self.res[k] as f32;
+            let x = (q[k] * F::of(n as f64)).floor();
+            x.max(F::zero()).min(F::of((n - 1.0) as f64)).index(stride)
+        };
+        let (rx, ry) = (self.res[0], self.res[1]);
+        let i = cell(0, 1) + cell(1, rx) + cell(2, rx * ry);
+        let cells = self.cells.as_flattened();
+        [
+            F::gather(cells, i, 2, 0, mask),
+            F::gather(cells, i, 2, 1, mask),
+        ]
     }
 }
 

@@ -4,7 +4,7 @@
 //! tests many things at once branches once per register, on whether any bit is set.
 //!
 //! [`Float`] is the number type the physics kernels are written over once (f32, f64 or
-//! lanes), [`Vector3`] a vector of it.
+//! lanes), [`Vector3`] a vector of it, [`Gather`] its index and table reads.
 //!
 //! Only what the lane kernels use is here; each operation is one instruction (or two
 //! on the narrow path) and rounds as its scalar counterpart does.
@@ -18,8 +18,10 @@
 //! `Lanes` does not have. Both are vectors over [`Vector3`].
 
 mod float;
+mod gather;
 
 pub use float::{Float, Vector3};
+pub use gather::Gather;
 pub use imp::{Lanes, Mask, WIDTH};
 
 #[cfg(all(target_arch = "x86_64", target_feature = "avx512f"))]

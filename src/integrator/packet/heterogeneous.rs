@@ -1,8 +1,9 @@
 //! A heterogeneous medium in lanes (`medium::heterogeneous`'s estimators): free flights
 //! by delta tracking and shadow rays' transmittance by ratio tracking, each lane with
 //! its own draws in the scalar code's order. The tentative collisions of all lanes step
-//! together until the last lane's flight ends; the volume is looked up lane by lane
-//! (a gather of its voxels), everything else in lanes.
+//! together until the last lane's flight ends; the volume and its lookup bounds are
+//! read by the scalar path's lookups, run in lanes (`Volume::eval_at`, a gather of
+//! the voxels), everything else in lanes.
 //!
 //! The lanes track at the medium's one global majorant, where the scalar code walks its
 //! local ones (`medium::majorant`): the same expectation by another estimator (the
@@ -11,13 +12,12 @@
 //! instead ran as fast as the global majorant in lanes, on the cloud.
 
 use glam::Vec3;
-use wide::{i32x8, CmpGe, CmpGt, CmpLe, CmpLt};
+use wide::{CmpGe, CmpGt, CmpLe, CmpLt};
 
 use super::lanes::{draw_1d, lanes_of, L, V3, WIDTH};
-use crate::medium::grid::{Filter, GridData, Source, Volume, Wrap};
 use crate::medium::heterogeneous::{
-    bounds_decision, null_weight, ratio_roulette, ratio_weight, real_probability, real_weight,
-    HeterogeneousMedium, RATIO_SURVIVAL,
+    null_weight, ratio_roulette, ratio_weight, real_probability, real_weight, HeterogeneousMedium,
+    RATIO_SURVIVAL,
 };
 use crate::medium::tracking::{optical_depth, MajorantSegment};
 use crate::sampling::Pcg32;
@@ -57,135 +57,6 @@ fn span(h: &HeterogeneousMedium, o: V3, d: V3, tmin: L, tmax: L) -> (L, L, L) {
         far = far.min(a.max(b));
     }
     (near, far, near.cmp_le(far))
-}
-
-/// The volume's values at the points `p` of the lanes of `mask` (elsewhere 0 or the
-/// value at `p`): a clamped trilinear grid (Mitsuba's default) in lanes but for the
-/// voxels' loads, any other grid lane by lane by the scalar lookup.
-#[inline(always)]
-fn eval(v: &Volume, p: V3, mask: L) -> V3 {
-    match &v.source {
-        Source::Const(c) => V3::splat(*c),
-        Source::Grid {
-            grid,
-            filter: Filter::Trilinear,
-            wrap: Wrap::Clamp,
-        } => trilinear_clamped(v, grid, p, mask),
-        Source::Grid { .. } => {
-            let mut out = [Vec3::ZERO; WIDTH];
-            for k in lanes_of(mask.move_mask()) {
-                out[k] = v.eval(p.lane_a(k));
-            }
-            V3::from_fn(|k| out[k])
-        }
-    }
-}
-
-/// The points `p` in `v`'s local space (its unit cube), per axis.
-#[inline(always)]
-fn local_point(v: &Volume, p: V3) -> [L; 3] {
-    let m = &v.to_local;
-    std::array::from_fn(|k| {
-        let (a, b, c) = (
-            m.matrix3.x_axis[k],
-            m.matrix3.y_axis[k],
-            m.matrix3.z_axis[k],
-        );
-        L::splat(a) * p.x + L::splat(b) * p.y + L::splat(c) * p.z + L::splat(m.translation[k])
-    })
-}
-
-/// The lookup bounds [lo, hi] (`LookupBounds`) at the points `p` of the lanes of
-/// `mask` (0 elsewhere), None where the medium has none.
-#[inline(always)]
-fn bounds_at(h: &HeterogeneousMedium, p: V3, mask: L) -> Option<(L, L)> {
-    let bounds = h.bounds.as_ref()?;
-    let q = local_point(&h.sigma_t, p);
-    let res = bounds.res();
-    let cell = |k: usize| {
-        let last = L::splat((res[k] - 1) as f32);
-        (q[k] * L::splat(res[k] as f32))
-            .floor()
-            .max(L::ZERO)
-            .min(last)
-            .fast_round_int()
-            .to_array()
-    };
-    let (x, y, z) = (cell(0), cell(1), cell(2));
-    let (mut lo, mut hi) = ([0f32; WIDTH], [0f32; WIDTH]);
-    // Clamped again as integers: a NaN coordinate would have come through the floats.
-    let at = |v: i32, k: usize| v.clamp(0, res[k] as i32 - 1) as usize;
-    for k in lanes_of(mask.move_mask()) {
-        [lo[k], hi[k]] = bounds.cell(at(x[k], 0), at(y[k], 1), at(z[k], 2));
-    }
-    Some((L::from(lo), L::from(hi)))
-}
-
-/// `HeterogeneousMedium::decided_by_bounds` in lanes: of the lanes of `mask`, those
-/// whose tentative collision at `p` with draw `u` the lookup bounds make real, and
-/// those they make null (none where the medium has no bounds).
-#[inline(always)]
-fn decided_by_bounds(h: &HeterogeneousMedium, p: V3, u: L, major: L, mask: L) -> (L, L) {
-    let Some((lo, hi)) = bounds_at(h, p, mask) else {
-        return (L::ZERO, L::ZERO);
-    };
-    let (real, null) = bounds_decision([lo, hi], u, L::splat(h.scale), major);
-    (mask & real, mask & null)
-}
-
-/// `grid::lookup`'s trilinear filter with clamped indices, in lanes: the local point
-/// x = q · res − 0.5 split into ⌊x⌋ and weights x − ⌊x⌋, the eight voxels around it
-/// summed in the scalar lookup's order.
-fn trilinear_clamped(v: &Volume, g: &GridData, p: V3, mask: L) -> V3 {
-    let q = local_point(v, p);
-    // Per axis: the two voxel indices (clamped) and their weights.
-    let axis = |k: usize| {
-        let n = g.res[k] as f32;
-        let x = q[k] * L::splat(n) - L::splat(0.5);
-        let f = x.floor();
-        let w1 = x - f;
-        let last = L::splat(n - 1.0);
-        let i0 = f.max(L::ZERO).min(last).fast_round_int();
-        let i1 = (f + L::ONE).max(L::ZERO).min(last).fast_round_int();
-        ([i0, i1], [L::ONE - w1, w1])
-    };
-    let (ix, wx) = axis(0);
-    let (iy, wy) = axis(1);
-    let (iz, wz) = axis(2);
-    let (sy, sz) = (
-        i32x8::splat(g.res[0] as i32),
-        i32x8::splat((g.res[0] * g.res[1]) as i32),
-    );
-    let channels = i32x8::splat(g.channels as i32);
-    let bits = mask.move_mask();
-    let mut value = V3::splat(Vec3::ZERO);
-    for (c, &z) in iz.iter().enumerate() {
-        for (b, &y) in iy.iter().enumerate() {
-            for (a, &x) in ix.iter().enumerate() {
-                let index = ((z * sz + y * sy + x) * channels).to_array();
-                let w = wx[a] * wy[b] * wz[c];
-                let load = |o: usize| {
-                    let mut out = [0f32; WIDTH];
-                    for k in lanes_of(bits) {
-                        out[k] = g.data[index[k] as usize + o];
-                    }
-                    L::from(out)
-                };
-                if g.channels == 1 {
-                    let d = load(0);
-                    value = value.add(V3 { x: d, y: d, z: d }.scale(w));
-                } else {
-                    let d = V3 {
-                        x: load(0),
-                        y: load(1),
-                        z: load(2),
-                    };
-                    value = value.add(d.scale(w));
-                }
-            }
-        }
-    }
-    value
 }
 
 /// Tentative collisions along the lanes' rays within the medium's span, each lane's
@@ -256,13 +127,16 @@ pub fn sample_flight(
     while tracker.step(rngs) {
         let active = tracker.active;
         let p = o.add(d.scale(tracker.t));
+        let q = h.sigma_t.local_point(p);
         // Real with probability P = mean(σ_t) / σ̄, else null; the grid read only where
         // its bounds leave the answer open.
         let u = draw_1d(active, rngs);
-        let (sure_real, sure_null) = decided_by_bounds(h, p, u, tracker.majorant(), active);
+        let (sure_real, sure_null) = h
+            .decided_by_bounds_at(q, u, tracker.majorant(), active)
+            .unwrap_or((L::ZERO, L::ZERO));
         let look = active & !(sure_real | sure_null);
         let sigma_t = match look.any() {
-            true => eval(&h.sigma_t, p, look).scale(tracker.scale),
+            true => h.sigma_t.eval_local(q, look).scale(tracker.scale),
             false => V3::splat(Vec3::ZERO),
         };
         let real = sure_real | (look & u.cmp_lt(real_probability(sigma_t, tracker.majorant())));
@@ -270,7 +144,7 @@ pub fn sample_flight(
             if !grey {
                 weight = weight.select(real, weight.mul(real_weight(sigma_t)));
             }
-            albedo = albedo.select(real, eval(&h.albedo, p, real));
+            albedo = albedo.select(real, h.albedo.eval_at(p, real));
             collided |= real;
         }
         let null = active & !real;
@@ -308,14 +182,14 @@ pub fn transmittance(
     let mut tracker = Tracker::new(h, (o, d), (tmin, tmax), mask);
     while tracker.step(rngs) {
         let active = tracker.active;
-        let p = o.add(d.scale(tracker.t));
+        let q = h.sigma_t.local_point(o.add(d.scale(tracker.t)));
         // Where the bounds say the cell is empty σ_t is 0 and the factor exactly 1: no read.
-        let look = match bounds_at(h, p, active) {
-            Some((_, hi)) => active & hi.cmp_gt(L::ZERO),
+        let look = match &h.bounds {
+            Some(b) => active & b.at_lanes(q, active)[1].cmp_gt(L::ZERO),
             None => active,
         };
         let sigma_t = match look.any() {
-            true => eval(&h.sigma_t, p, look).scale(tracker.scale),
+            true => h.sigma_t.eval_local(q, look).scale(tracker.scale),
             false => V3::splat(Vec3::ZERO),
         };
         tr = tr.select(active, ratio_weight(sigma_t, tracker.majorant()).mul(tr));
@@ -352,7 +226,7 @@ pub fn depth_estimate(h: &HeterogeneousMedium, o: V3, d: V3, (tmin, tmax): (L, L
 mod tests {
     use super::*;
     use crate::integrator::packet::lanes::mask_of;
-    use crate::medium::grid::{parse_vol, write_vol};
+    use crate::medium::grid::{parse_vol, write_vol, Filter, Source, Volume, Wrap};
     use glam::{Affine3A, Vec3A};
     use wide::CmpEq;
 
