@@ -35,19 +35,19 @@ pub enum Wrap {
 
 impl Wrap {
     /// The voxel that integral coordinate `i` reads along an axis of `n` voxels (as a
-    /// float: exact below 2^24). Clamped to the axis in every mode, so that a NaN
-    /// coordinate (a point at infinity) reads the first voxel instead of outside.
+    /// float: exact below 2^24), on the axis in every mode: a NaN coordinate (a point
+    /// at infinity) reads a voxel of the grid, never outside it (`Gather::rem_euclid`
+    /// keeps its answer in [0, n) for any x).
     #[inline(always)]
-    fn index<F: Gather>(self, i: F, n: f32) -> F {
-        let i = match self {
-            Wrap::Clamp => i,
+    fn index<F: Gather>(self, i: F, n: usize) -> F {
+        match self {
+            Wrap::Clamp => i.max(F::zero()).min(F::of((n - 1) as f64)),
             Wrap::Repeat => i.rem_euclid(n),
             Wrap::Mirror => {
-                let m = i.rem_euclid(2.0 * n);
-                F::select(m.ge(F::of(n as f64)), F::of((2.0 * n - 1.0) as f64) - m, m)
+                let m = i.rem_euclid(2 * n);
+                F::select(m.ge(F::of(n as f64)), F::of((2 * n - 1) as f64) - m, m)
             }
-        };
-        i.max(F::zero()).min(F::of((n - 1.0) as f64))
+        }
     }
 }
 
@@ -245,8 +245,9 @@ impl Volume {
     pub fn eval(&self, p: Vec3A) -> Vec3 {
         match &self.source {
             Source::Const(v) => *v,
-            Source::Grid { .. } => {
-                let v = self.eval_local(self.to_local.transform_point3a(p).to_array(), true);
+            Source::Grid { grid, filter, wrap } => {
+                let q = self.to_local.transform_point3a(p).to_array();
+                let v = lookup(grid, *filter, *wrap, q, true);
                 Vec3::new(v.x, v.y, v.z)
             }
         }
@@ -374,12 +375,18 @@ impl Volume {
 /// point `q`.
 #[inline(always)]
 fn nearest_voxel<F: Gather>(g: &GridData, wrap: Wrap, q: [F; 3]) -> F::Index {
-    let i = |k: usize, stride: usize| {
-        let n = g.res[k] as f32;
-        let x = (q[k] * F::of(n as f64)).floor();
-        wrap.index(x, n).index(stride)
-    };
-    i(0, 1) + i(1, g.res[0]) + i(2, g.res[0] * g.res[1])
+    let [nx, ny, nz] = g.res;
+    nearest_offset(q[0], nx, 1, wrap)
+        + nearest_offset(q[1], ny, nx, wrap)
+        + nearest_offset(q[2], nz, nx * ny, wrap)
+}
+
+/// Along one axis of `n` cells, the offset (the index times `stride`) of the cell that
+/// local coordinate `q` falls in, ⌊q · n⌋ wrapped: `nearest`'s voxel, and the lookup
+/// bounds' cell (clamped).
+#[inline(always)]
+pub(super) fn nearest_offset<F: Gather>(q: F, n: usize, stride: usize, wrap: Wrap) -> F::Index {
+    wrap.index((q * F::of(n as f64)).floor(), n).index(stride)
 }
 
 /// The 8 voxels `trilinear` reads at local point `q` and their weights, x fastest, then
@@ -390,7 +397,6 @@ fn trilinear_corners<F: Gather>(g: &GridData, wrap: Wrap, q: [F; 3]) -> ([F::Ind
     // Per axis: the two voxels' offsets (the voxel index times its stride) and weights.
     #[inline(always)]
     fn axis<F: Gather>(q: F, n: usize, stride: usize, wrap: Wrap) -> ([F::Index; 2], [F; 2]) {
-        let n = n as f32;
         let x = q * F::of(n as f64) - F::of(0.5);
         let f = x.floor();
         let w1 = x - f;

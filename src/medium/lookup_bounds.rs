@@ -13,7 +13,7 @@
 //! Ratio tracking (shadow rays) weighs each tentative collision by σ_t itself: it reads
 //! the grid except, in lanes, in a cell whose hi is 0 (its factor exactly 1).
 
-use super::grid::{Filter, GridData, Volume};
+use super::grid::{nearest_offset, Filter, GridData, Volume, Wrap};
 use super::majorant::cell_ranges;
 use crate::simd::Gather;
 
@@ -74,13 +74,12 @@ impl LookupBounds {
     /// others): [`LookupBounds::at`] over any number type.
     #[inline(always)]
     pub fn at_lanes<F: Gather>(&self, q: [F; 3], mask: F::Mask) -> [F; 2] {
-        let cell = |k: usize, stride: usize| {
-            let n = self.res[k] as f32;
-            let x = (q[k] * F::of(n as f64)).floor();
-            x.max(F::zero()).min(F::of((n - 1.0) as f64)).index(stride)
-        };
-        let (rx, ry) = (self.res[0], self.res[1]);
-        let i = cell(0, 1) + cell(1, rx) + cell(2, rx * ry);
+        // The outer cells take everything beyond the cube, whose clamped lookups read
+        // their voxels.
+        let [rx, ry, rz] = self.res;
+        let i = nearest_offset(q[0], rx, 1, Wrap::Clamp)
+            + nearest_offset(q[1], ry, rx, Wrap::Clamp)
+            + nearest_offset(q[2], rz, rx * ry, Wrap::Clamp);
         let cells = self.cells.as_flattened();
         [
             F::gather(cells, i, 2, 0, mask),

@@ -17,8 +17,9 @@ pub trait Gather: Float {
 
     /// ⌊x⌋.
     fn floor(self) -> Self;
-    /// x mod n in [0, n) for integral x and n (exact where |x| < 2^24).
-    fn rem_euclid(self, n: f32) -> Self;
+    /// x mod n for integral x and n: exact where |x| < 2^24, and in [0, n) for every
+    /// x, NaN and infinities included (so that it can index a table of n).
+    fn rem_euclid(self, n: usize) -> Self;
     /// `stride · x` as an index, for integral x in [0, 2^24) (exact).
     fn index(self, stride: usize) -> Self::Index;
     /// `data[stride · i + offset]` in the lanes of `mask`, 0 in the others. One path is
@@ -35,7 +36,7 @@ impl Gather for f32 {
         f32::floor(self)
     }
     #[inline(always)]
-    fn rem_euclid(self, n: f32) -> Self {
+    fn rem_euclid(self, n: usize) -> Self {
         // On integers (saturating at i32's range), as a voxel index wraps.
         (self as i32).rem_euclid(n as i32) as f32
     }
@@ -58,12 +59,14 @@ impl Gather for f32x8 {
         f32x8::floor(self)
     }
     #[inline(always)]
-    fn rem_euclid(self, n: f32) -> Self {
+    fn rem_euclid(self, n: usize) -> Self {
         // x − n ⌊x / n⌋: for |x| < 2^24 the quotient x/n = q + r/n rounds to q + 1
         // only where 1/n is below half q's ulp, i.e. where q n ≥ 2^24 (it never does
         // here), and the product and difference are exact integers.
-        let n = f32x8::splat(n);
-        self - n * (self / n).floor()
+        // Beyond 2^24 (and for NaN or ±∞) the clamp keeps r on the table: NaN goes to 0.
+        let n = f32x8::splat(n as f32);
+        let r = self - n * (self / n).floor();
+        r.max(f32x8::ZERO).min(n - f32x8::ONE)
     }
     #[inline(always)]
     fn index(self, stride: usize) -> i32x8 {
@@ -105,15 +108,36 @@ mod tests {
         assert_eq!(got[7], 0.0);
         // Wrapping, lane against one path, for every integer near and far from 0
         // (where the quotient rounds) and a few axis lengths.
-        for n in [1.0f32, 3.0, 5.0, 64.0, 1000.0] {
+        for n in [1usize, 3, 5, 64, 1000] {
             for start in [-3000i32, -(1 << 23), (1 << 23) - 3000] {
                 for i in (start..start + 3000).step_by(8) {
                     let x: [f32; 8] = std::array::from_fn(|k| (i + k as i32) as f32);
                     let lanes = f32x8::from(x).rem_euclid(n).to_array();
                     for k in 0..8 {
-                        assert_eq!(lanes[k], x[k].rem_euclid(n), "{} mod {n}", x[k]);
+                        assert_eq!(lanes[k], x[k].rem_euclid(n as f32), "{} mod {n}", x[k]);
                     }
                 }
+            }
+            // Far out, NaN and infinities stay on a table of n.
+            let odd = [
+                3e9,
+                -3e9,
+                1e30,
+                -1e30,
+                f32::NAN,
+                f32::INFINITY,
+                -f32::INFINITY,
+                5e7,
+            ];
+            for r in f32x8::from(odd).rem_euclid(n).to_array() {
+                assert!((0.0..n as f32).contains(&r), "{r} off a table of {n}");
+            }
+            for x in odd {
+                let r = Gather::rem_euclid(x, n);
+                assert!(
+                    (0.0..n as f32).contains(&r),
+                    "{x} mod {n} = {r} off the table"
+                );
             }
         }
     }
