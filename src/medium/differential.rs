@@ -145,7 +145,9 @@ impl DifferentialTracking {
         rng: &mut Pcg32,
         mut collide: impl FnMut(Tentative, bool),
     ) -> Option<Tentative> {
-        sample_t_maj(self.segments(medium, o, d, tmax), rng, |t, major, rng| {
+        let mut real_one = None;
+        let segments = self.segments(medium, o, d, tmax);
+        sample_t_maj(segments, true, rng, |t, major, _, rng: &mut Pcg32| {
             let p = o + d * t;
             let sigma_t = medium.sigma_t_at(p).x;
             let c = Tentative {
@@ -156,8 +158,12 @@ impl DifferentialTracking {
             };
             let real = rng.next_1d() * major < sigma_t;
             collide(c, real);
-            real.then_some(c)
-        })
+            if real {
+                real_one = Some(c);
+            }
+            real
+        });
+        real_one
     }
 
     /// Whether a ghost forks at tentative collision `c` (where σ_t < ρ), with draw
@@ -181,7 +187,8 @@ impl DifferentialTracking {
         mut null: impl FnMut(Vec3A, f32),
     ) -> Vec3 {
         let mut tr = 1.0f32;
-        let ended = sample_t_maj(self.segments(medium, o, d, dist), rng, |t, major, rng| {
+        let segments = self.segments(medium, o, d, dist);
+        let ended = sample_t_maj(segments, true, rng, |t, major, _, rng: &mut Pcg32| {
             let p = o + d * t;
             let sigma_n = major - medium.sigma_t_at(p).x;
             tr *= sigma_n / major;
@@ -189,13 +196,13 @@ impl DifferentialTracking {
             // Russian roulette once little is left, detached (survivors weigh 1/q).
             if tr < super::heterogeneous::RATIO_ROULETTE_BELOW {
                 if rng.next_1d() >= super::heterogeneous::RATIO_SURVIVAL {
-                    return Some(());
+                    return true;
                 }
                 tr *= 1.0 / super::heterogeneous::RATIO_SURVIVAL;
             }
-            None
+            false
         });
-        if ended.is_some() {
+        if ended {
             Vec3::ZERO
         } else {
             Vec3::splat(tr)

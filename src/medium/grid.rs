@@ -13,7 +13,7 @@
 
 use glam::{Affine3A, Vec3, Vec3A};
 
-use crate::simd::{Float, Gather, Vector3};
+use crate::simd::{Gather, Vector3};
 
 /// The `.vol` header's size: "VOL", version, encoding, 3 resolutions, channels, bbox.
 pub const VOL_HEADER_BYTES: usize = 3 + 1 + 4 + 3 * 4 + 4 + 6 * 4;
@@ -34,19 +34,15 @@ pub enum Wrap {
 }
 
 impl Wrap {
-    /// The voxel that integral coordinate `i` reads along an axis of `n` voxels (as a
-    /// float: exact below 2^24), on the axis in every mode: a NaN coordinate (a point
-    /// at infinity) reads a voxel of the grid, never outside it (`Gather::rem_euclid`
-    /// keeps its answer in [0, n) for any x).
+    /// The offset (index times `stride`) of the voxel that integral coordinate `i`
+    /// reads along an axis of `n` voxels, on the axis in every mode: a NaN coordinate
+    /// (a point at infinity) reads a voxel of the grid, never outside it.
     #[inline(always)]
-    fn index<F: Gather>(self, i: F, n: usize) -> F {
+    fn index<F: Gather>(self, i: F, n: usize, stride: usize) -> F::Index {
         match self {
-            Wrap::Clamp => i.max(F::zero()).min(F::of((n - 1) as f64)),
-            Wrap::Repeat => i.rem_euclid(n),
-            Wrap::Mirror => {
-                let m = i.rem_euclid(2 * n);
-                F::select(m.ge(F::of(n as f64)), F::of((2 * n - 1) as f64) - m, m)
-            }
+            Wrap::Clamp => i.clamp_index(n, stride),
+            Wrap::Repeat => i.repeat_index(n, stride),
+            Wrap::Mirror => i.mirror_index(n, stride),
         }
     }
 }
@@ -259,7 +255,7 @@ impl Volume {
     pub fn eval_at<F: Gather>(&self, p: Vector3<F>, mask: F::Mask) -> Vector3<F> {
         match &self.source {
             Source::Const(v) => Vector3::splat(*v),
-            Source::Grid { .. } => self.eval_local(self.local_point(p), mask),
+            Source::Grid { .. } => self.eval_local(self.local_point(F::point(p)), mask),
         }
     }
 
@@ -272,23 +268,10 @@ impl Volume {
         }
     }
 
-    /// World points `p` in the volume's unit cube, per axis, rounded as glam's
-    /// `Affine3A::transform_point3a` rounds them (the products summed x, y, z, then
-    /// the translation); `Volume::eval` transforms its one point by glam itself.
+    /// World points `p` in the volume's unit cube (`Gather::transform_point`).
     #[inline(always)]
-    pub fn local_point<F: Float>(&self, p: Vector3<F>) -> [F; 3] {
-        let m = &self.to_local;
-        std::array::from_fn(|k| {
-            let (a, b, c) = (
-                m.matrix3.x_axis[k],
-                m.matrix3.y_axis[k],
-                m.matrix3.z_axis[k],
-            );
-            F::of(a as f64) * p.x
-                + F::of(b as f64) * p.y
-                + F::of(c as f64) * p.z
-                + F::of(m.translation[k] as f64)
-        })
+    pub fn local_point<F: Gather>(&self, p: F::Point) -> [F; 3] {
+        F::transform_point(&self.to_local, p)
     }
 
     /// The same volume (placement, filter, wrap, channels) holding `data` at resolution
@@ -386,7 +369,7 @@ fn nearest_voxel<F: Gather>(g: &GridData, wrap: Wrap, q: [F; 3]) -> F::Index {
 /// bounds' cell (clamped).
 #[inline(always)]
 pub(super) fn nearest_offset<F: Gather>(q: F, n: usize, stride: usize, wrap: Wrap) -> F::Index {
-    wrap.index((q * F::of(n as f64)).floor(), n).index(stride)
+    wrap.index((q * F::of(n as f64)).floor(), n, stride)
 }
 
 /// The 8 voxels `trilinear` reads at local point `q` and their weights, x fastest, then
@@ -400,8 +383,8 @@ fn trilinear_corners<F: Gather>(g: &GridData, wrap: Wrap, q: [F; 3]) -> ([F::Ind
         let x = q * F::of(n as f64) - F::of(0.5);
         let f = x.floor();
         let w1 = x - f;
-        let i0 = wrap.index(f, n).index(stride);
-        let i1 = wrap.index(f + F::one(), n).index(stride);
+        let i0 = wrap.index(f, n, stride);
+        let i1 = wrap.index(f + F::one(), n, stride);
         ([i0, i1], [F::one() - w1, w1])
     }
     let (ix, wx) = axis(q[0], g.res[0], 1, wrap);

@@ -12,11 +12,15 @@
 //! delta tracking (free flights) and ratio tracking (shadow rays) differ only there.
 //!
 //! The segments come from the global majorant (one segment over the medium's span) or
-//! from a majorant grid (`medium::majorant`, one a cell; the segment types live there). The lane path tracks at the
-//! global majorant with the same step (1) in lanes (`MajorantSegment<L>`).
+//! from a majorant grid (`medium::majorant`, one a cell; the segment types live there).
+//! The loop is written once over the number type: on one path it walks the ray's
+//! segments; in lanes each lane tracks its own ray, the lanes stepping together until
+//! the last one's tracking ends (there each lane's walk is one segment at the global σ̄:
+//! walking the cells in lanes was tried and was slower, the lanes that cross many cells
+//! holding up the others).
 
 pub use super::majorant::{MajorantSegment, MajorantSegments};
-use crate::sampling::Pcg32;
+use crate::sampling::Sampler;
 use crate::simd::Float;
 
 /// −ln(1 − u), an exponential optical depth from uniform `u`: the distance to the next
@@ -26,42 +30,106 @@ pub fn optical_depth<F: Float>(u: F) -> F {
     (F::one() - u).ln().negate()
 }
 
-/// Tentative collisions along `segments` (1): `collide(t, σ̄, rng)` decides at each
-/// whether the tracking ends there, and with what; None once the segments are spent.
-/// The draws: one τ before the first collision and one after each (none where there is
-/// no segment).
-pub fn sample_t_maj<T>(
-    mut segments: impl Iterator<Item = MajorantSegment<f32>>,
-    rng: &mut Pcg32,
-    mut collide: impl FnMut(f32, f32, &mut Pcg32) -> Option<T>,
-) -> Option<T> {
-    let mut segment = segments.next()?;
-    let mut tau = optical_depth(rng.next_1d());
+/// A ray's majorant segments in turn, per path (pbrt-v4's `RayMajorantIterator`).
+pub trait MajorantWalk<F: Float> {
+    /// The next segment of the paths of `active`, and the paths that have one.
+    fn next_segment(&mut self, active: F::Mask) -> (MajorantSegment<F>, F::Mask);
+}
+
+/// One path's segments from an iterator of them (a majorant grid's cells, or one).
+impl<I: Iterator<Item = MajorantSegment<f32>>> MajorantWalk<f32> for I {
+    #[inline(always)]
+    fn next_segment(&mut self, _: bool) -> (MajorantSegment<f32>, bool) {
+        match self.next() {
+            Some(segment) => (segment, true),
+            None => (NO_SEGMENT, false),
+        }
+    }
+}
+
+const NO_SEGMENT: MajorantSegment<f32> = MajorantSegment {
+    t_min: 0.0,
+    t_max: 0.0,
+    sigma_maj: 0.0,
+};
+
+/// One segment per path, in the paths of `some` (the medium's span at its global σ̄).
+pub struct OneSegment<F: Float> {
+    pub segment: MajorantSegment<F>,
+    pub some: F::Mask,
+}
+
+impl<F: Float> MajorantWalk<F> for OneSegment<F> {
+    #[inline(always)]
+    fn next_segment(&mut self, active: F::Mask) -> (MajorantSegment<F>, F::Mask) {
+        let some = self.some;
+        self.some = some & !some;
+        (self.segment, active & some)
+    }
+}
+
+/// Tentative collisions along each path's `segments` (1), in the paths of `mask`:
+/// `collide(t, σ̄, active, sampler)` decides at each collision of the paths of `active`
+/// which of them the tracking ends at (their answers are the caller's to keep); the
+/// paths where it did are returned, the others ran past their segments. A path's draws:
+/// one τ before its first collision and one after each it goes on from (none where it
+/// has no segment), so that one path and a lane draw alike.
+#[inline(always)]
+pub fn sample_t_maj<F: Float, S: Sampler<F> + ?Sized>(
+    mut segments: impl MajorantWalk<F>,
+    mask: F::Mask,
+    sampler: &mut S,
+    mut collide: impl FnMut(F, F, F::Mask, &mut S) -> F::Mask,
+) -> F::Mask {
+    let (mut segment, mut active) = segments.next_segment(mask);
+    let mut ended = active & !active;
+    if !F::any(active) {
+        return ended;
+    }
+    let mut tau = optical_depth(sampler.draw_1d(active));
     let mut t = segment.t_min;
     loop {
-        if segment.sigma_maj > 0.0 {
-            loop {
-                let (next, inside) = segment.next_collision(t, tau);
-                if !inside {
-                    break;
-                }
-                t = next;
-                if let Some(answer) = collide(t, segment.sigma_maj, rng) {
-                    return Some(answer);
-                }
-                tau = optical_depth(rng.next_1d());
+        let mut within = active & segment.sigma_maj.gt(F::zero());
+        while F::any(within) {
+            let (next, inside) = segment.next_collision(t, tau);
+            within = within & inside;
+            if !F::any(within) {
+                break;
             }
+            t = F::select(within, next, t);
+            let done = collide(t, segment.sigma_maj, within, sampler);
+            ended = ended | done;
+            active = active & !done;
+            within = within & !done;
+            if !F::any(within) {
+                break;
+            }
+            tau = F::select(within, optical_depth(sampler.draw_1d(within)), tau);
+        }
+        if !F::any(active) {
+            return ended;
         }
         // The rest of the segment spends σ̄ (t_max − t) of τ.
-        tau = (tau - segment.sigma_maj * (segment.t_max - t)).max(0.0);
-        segment = segments.next()?;
-        t = segment.t_min;
+        let spent = segment.sigma_maj * (segment.t_max - t);
+        tau = F::select(active, (tau - spent).max(F::zero()), tau);
+        let (next, some) = segments.next_segment(active);
+        active = active & some;
+        if !F::any(active) {
+            return ended;
+        }
+        segment = MajorantSegment {
+            t_min: F::select(active, next.t_min, segment.t_min),
+            t_max: F::select(active, next.t_max, segment.t_max),
+            sigma_maj: F::select(active, next.sigma_maj, segment.sigma_maj),
+        };
+        t = F::select(active, segment.t_min, t);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sampling::Pcg32;
 
     fn segments(cuts: &[(f32, f32, f32)]) -> Vec<MajorantSegment<f32>> {
         cuts.iter()
@@ -79,14 +147,10 @@ mod tests {
         let (mut sum, mut sq) = (0f64, 0f64);
         for _ in 0..trials {
             let mut n = 0f64;
-            sample_t_maj(
-                segments(cuts).into_iter(),
-                &mut rng,
-                |_, _, _| -> Option<()> {
-                    n += 1.0;
-                    None
-                },
-            );
+            sample_t_maj(segments(cuts).into_iter(), true, &mut rng, |_, _, _, _| {
+                n += 1.0;
+                false
+            });
             sum += n;
             sq += n * n;
         }

@@ -44,6 +44,8 @@ pub trait Float:
     fn is_finite(self) -> Self::Mask;
     /// `t` where `m`, else `f`.
     fn select(m: Self::Mask, t: Self, f: Self) -> Self;
+    /// Whether `m` holds on any path (a loop over lanes goes on while one is live).
+    fn any(m: Self::Mask) -> bool;
 
     #[inline(always)]
     fn zero() -> Self {
@@ -133,6 +135,10 @@ macro_rules! scalar {
                     f
                 }
             }
+            #[inline(always)]
+            fn any(m: bool) -> bool {
+                m
+            }
         }
     };
 }
@@ -209,6 +215,10 @@ impl Float for f32x8 {
     #[inline(always)]
     fn select(m: Self, t: Self, f: Self) -> Self {
         m.blend(t, f)
+    }
+    #[inline(always)]
+    fn any(m: Self) -> bool {
+        m.any()
     }
 }
 

@@ -6,9 +6,10 @@
 
 use std::ops::Add;
 
+use glam::{Affine3A, Vec3A};
 use wide::{f32x8, i32x8};
 
-use super::Float;
+use super::{Float, Vector3};
 
 /// A [`Float`] that can index memory.
 pub trait Gather: Float {
@@ -26,6 +27,49 @@ pub trait Gather: Float {
     /// always read: where it is called, its path is live.
     fn gather(data: &[f32], i: Self::Index, stride: usize, offset: usize, mask: Self::Mask)
         -> Self;
+
+    /// A point (or direction) as a loop over one ray holds it: `Vec3A`, one register,
+    /// on one path (so that fewer values are saved across a call), `Vector3` in lanes.
+    type Point: Copy;
+
+    fn point(v: Vector3<Self>) -> Self::Point;
+    /// o + t d.
+    fn along(o: Self::Point, d: Self::Point, t: Self) -> Self::Point;
+    fn vector(p: Self::Point) -> Vector3<Self>;
+    /// `m`'s transform of point `p`, rounded as glam's `Affine3A::transform_point3a`
+    /// rounds it (per axis the products summed x, y, z, then the translation).
+    fn transform_point(m: &Affine3A, p: Self::Point) -> [Self; 3];
+    /// The stretches [t0, t1] ⊂ [tmin, tmax] of the rays `o + t d` within the box
+    /// [lo, hi] (the slab test), and the paths where one is not empty. Where d has a 0
+    /// and o lies on that slab's plane, 0 · ∞ is NaN there: the other slabs decide.
+    fn box_span(
+        box_: [Vec3A; 2],
+        o: Self::Point,
+        d: Self::Point,
+        span: (Self, Self),
+    ) -> (Self, Self, Self::Mask);
+
+    /// The entry that integral coordinate x reads along a table of n, times `stride`,
+    /// as a texture's addressing modes place it, in [0, n) for every x (NaN and
+    /// infinities included). Clamped to the ends:
+    #[inline(always)]
+    fn clamp_index(self, n: usize, stride: usize) -> Self::Index {
+        self.max(Self::zero())
+            .min(Self::of((n - 1) as f64))
+            .index(stride)
+    }
+    /// Repeated (x mod n):
+    #[inline(always)]
+    fn repeat_index(self, n: usize, stride: usize) -> Self::Index {
+        self.rem_euclid(n).index(stride)
+    }
+    /// Mirrored at each end (x mod 2n, folded back where it is n or more):
+    #[inline(always)]
+    fn mirror_index(self, n: usize, stride: usize) -> Self::Index {
+        let m = self.rem_euclid(2 * n);
+        let folded = Self::of((2 * n - 1) as f64) - m;
+        Self::select(m.ge(Self::of(n as f64)), folded, m).index(stride)
+    }
 }
 
 impl Gather for f32 {
@@ -49,6 +93,52 @@ impl Gather for f32 {
     fn gather(data: &[f32], i: usize, stride: usize, offset: usize, _: bool) -> Self {
         data[stride * i + offset]
     }
+    type Point = Vec3A;
+
+    #[inline(always)]
+    fn point(v: Vector3<f32>) -> Vec3A {
+        v.into()
+    }
+    #[inline(always)]
+    fn along(o: Vec3A, d: Vec3A, t: f32) -> Vec3A {
+        o + d * t
+    }
+    #[inline(always)]
+    fn vector(p: Vec3A) -> Vector3<f32> {
+        p.into()
+    }
+    #[inline(always)]
+    fn transform_point(m: &Affine3A, p: Vec3A) -> [f32; 3] {
+        m.transform_point3a(p).to_array()
+    }
+    // In one register: a slab test per flight and shadow ray is worth its few
+    // instructions.
+    #[inline(always)]
+    fn box_span(
+        [lo, hi]: [Vec3A; 2],
+        o: Vec3A,
+        d: Vec3A,
+        (tmin, tmax): (f32, f32),
+    ) -> (f32, f32, bool) {
+        let inv = d.recip();
+        let a = (lo - o) * inv;
+        let b = (hi - o) * inv;
+        let t0 = a.min(b).max_element().max(tmin);
+        let t1 = a.max(b).min_element().min(tmax);
+        (t0, t1, t0 <= t1)
+    }
+    // Repeat and mirror on integers: on one path the round trips through f32 around the
+    // integer remainder cost more than the wrap itself.
+    #[inline(always)]
+    fn repeat_index(self, n: usize, stride: usize) -> usize {
+        (self as i32).rem_euclid(n as i32) as usize * stride
+    }
+    #[inline(always)]
+    fn mirror_index(self, n: usize, stride: usize) -> usize {
+        let n = n as i32;
+        let m = (self as i32).rem_euclid(2 * n);
+        (if m >= n { 2 * n - 1 - m } else { m }) as usize * stride
+    }
 }
 
 impl Gather for f32x8 {
@@ -71,6 +161,55 @@ impl Gather for f32x8 {
     #[inline(always)]
     fn index(self, stride: usize) -> i32x8 {
         self.fast_round_int() * i32x8::splat(stride as i32)
+    }
+    type Point = Vector3<f32x8>;
+
+    #[inline(always)]
+    fn point(v: Vector3<f32x8>) -> Vector3<f32x8> {
+        v
+    }
+    #[inline(always)]
+    fn along(o: Self::Point, d: Self::Point, t: f32x8) -> Self::Point {
+        o.add(d.scale(t))
+    }
+    #[inline(always)]
+    fn vector(p: Self::Point) -> Vector3<f32x8> {
+        p
+    }
+    #[inline(always)]
+    fn transform_point(m: &Affine3A, p: Self::Point) -> [f32x8; 3] {
+        std::array::from_fn(|k| {
+            let (a, b, c) = (
+                m.matrix3.x_axis[k],
+                m.matrix3.y_axis[k],
+                m.matrix3.z_axis[k],
+            );
+            f32x8::splat(a) * p.x
+                + f32x8::splat(b) * p.y
+                + f32x8::splat(c) * p.z
+                + f32x8::splat(m.translation[k])
+        })
+    }
+    #[inline(always)]
+    fn box_span(
+        [lo, hi]: [Vec3A; 2],
+        o: Self::Point,
+        d: Self::Point,
+        (tmin, tmax): (f32x8, f32x8),
+    ) -> (f32x8, f32x8, f32x8) {
+        let (mut near, mut far) = (tmin, tmax);
+        for (o, d, lo, hi) in [
+            (o.x, d.x, lo.x, hi.x),
+            (o.y, d.y, lo.y, hi.y),
+            (o.z, d.z, lo.z, hi.z),
+        ] {
+            let inv = f32x8::ONE / d;
+            let a = (f32x8::splat(lo) - o) * inv;
+            let b = (f32x8::splat(hi) - o) * inv;
+            near = near.max(a.min(b));
+            far = far.min(a.max(b));
+        }
+        (near, far, Float::le(near, far))
     }
     #[inline(always)]
     fn gather(data: &[f32], i: i32x8, stride: usize, offset: usize, mask: f32x8) -> Self {
@@ -113,8 +252,17 @@ mod tests {
                 for i in (start..start + 3000).step_by(8) {
                     let x: [f32; 8] = std::array::from_fn(|k| (i + k as i32) as f32);
                     let lanes = f32x8::from(x).rem_euclid(n).to_array();
+                    let wrapped = [
+                        f32x8::from(x).repeat_index(n, 3).to_array(),
+                        f32x8::from(x).mirror_index(n, 3).to_array(),
+                    ];
                     for k in 0..8 {
                         assert_eq!(lanes[k], x[k].rem_euclid(n as f32), "{} mod {n}", x[k]);
+                        // The one path's integer wraps place it where the lanes do.
+                        let one = [x[k].repeat_index(n, 3), x[k].mirror_index(n, 3)];
+                        for (mode, (l, o)) in wrapped.iter().zip(one).enumerate() {
+                            assert_eq!(l[k] as usize, o, "mode {mode}: {} on {n}", x[k]);
+                        }
                     }
                 }
             }
@@ -133,6 +281,13 @@ mod tests {
                 assert!((0.0..n as f32).contains(&r), "{r} off a table of {n}");
             }
             for x in odd {
+                for i in [
+                    x.repeat_index(n, 1),
+                    x.mirror_index(n, 1),
+                    x.clamp_index(n, 1),
+                ] {
+                    assert!(i < n, "{x} indexes {i} on a table of {n}");
+                }
                 let r = Gather::rem_euclid(x, n);
                 assert!(
                     (0.0..n as f32).contains(&r),

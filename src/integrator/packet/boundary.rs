@@ -3,11 +3,11 @@
 use glam::Vec3;
 use wide::{CmpEq, CmpLe};
 
-use super::lanes::{draw_1d, draw_2d, L, V3};
+use super::lanes::{L, V3};
 use super::medium_normals;
 use super::scene::PacketScene;
 use crate::bsdf::fresnel::fresnel;
-use crate::sampling::Pcg32;
+use crate::sampling::{Pcg32, Sampler};
 
 /// A dielectric boundary's sample: the outward normal, the new direction, its pdf (0:
 /// none), the weight and the relative index the path's η takes.
@@ -42,8 +42,8 @@ pub fn boundary_sample(
             trans = trans.select(here, V3::splat(b.transmittance));
         }
     }
-    let u = draw_1d(mask, rngs);
-    let _ = draw_2d(mask, rngs);
+    let u = rngs.draw_1d(mask);
+    let _ = rngs.draw_2d(mask);
     // Fresnel (`bsdf::fresnel`): cos θ_i of wi = −d about the outward normal.
     let one = L::ONE;
     let cos_i = -d.dot(n);

@@ -4,11 +4,11 @@
 use glam::Vec3;
 use wide::{CmpGt, CmpLt};
 
-use super::lanes::{draw_2d, lanes_of, mask_of, L, V3, WIDTH};
+use super::lanes::{lanes_of, mask_of, L, V3, WIDTH};
 use super::scene::{LaneEmitter, PacketScene};
 use crate::geometry::shape::sample_sphere_cone;
 use crate::geometry::SHADOW_EPSILON;
-use crate::sampling::{mis_weight, Pcg32};
+use crate::sampling::{mis_weight, Pcg32, Sampler};
 use crate::scene::Scene;
 
 /// Emitter samples from points of the lanes, before the shadow ray: direction,
@@ -69,7 +69,7 @@ pub fn sample_emitters(
             position,
             intensity,
         } => {
-            let _ = draw_2d(mask, rngs);
+            let _ = rngs.draw_2d(mask);
             let v = V3::splat(position).sub(p);
             let dist2 = v.dot(v);
             let dist = dist2.sqrt();
@@ -82,7 +82,7 @@ pub fn sample_emitters(
             irradiance,
             bsphere: (center, radius),
         } => {
-            let _ = draw_2d(mask, rngs);
+            let _ = rngs.draw_2d(mask);
             let c = p.sub(V3::splat(center));
             let r = L::splat(radius).max(c.dot(c).sqrt());
             let dist = L::splat(2.0) * r;
@@ -103,7 +103,7 @@ pub fn sample_emitters(
         } => {
             // A point uniform on the rectangle; pdf_ω = pdf_A r² / |cos θ_light|, from
             // the front side only.
-            let (u1, u2) = draw_2d(mask, rngs);
+            let (u1, u2) = rngs.draw_2d(mask);
             let (x, y) = (L::splat(2.0) * u1 - L::ONE, L::splat(2.0) * u2 - L::ONE);
             let [px, py, pz] = rows.map(|r| L::splat(r.x) * x + L::splat(r.y) * y + L::splat(r.w));
             let v = V3 {
@@ -126,7 +126,7 @@ pub fn sample_emitters(
             radius,
             radiance,
         } => {
-            let (u1, u2) = draw_2d(mask, rngs);
+            let (u1, u2) = rngs.draw_2d(mask);
             let c = sample_cone(center, radius, p, u1, u2);
             let value = V3::splat(radiance).scale(c.ok.blend(L::ONE / c.pdf, L::ZERO));
             let out = lanes(c.d, c.dist, value, c.ok, c.pdf, false);
@@ -140,7 +140,7 @@ pub fn sample_emitters(
         }
         LaneEmitter::Scalar => {}
     }
-    let u = draw_2d(mask, rngs);
+    let u = rngs.draw_2d(mask);
     per_lane(scene, p, mask, u)
 }
 

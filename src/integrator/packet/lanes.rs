@@ -1,11 +1,10 @@
 //! The packet's registers: `wide`'s `f32x8` (one lane per path), `simd::Vector3` of
-//! them (a position, a direction or an RGB value per path), masks (all bits
-//! set in a lane that is on), and the random draws of the lanes that need them.
+//! them (a position, a direction or an RGB value per path) and masks (all bits
+//! set in a lane that is on); the lanes draw by `sampling::Sampler`.
 
 use glam::{Vec3, Vec3A};
 use wide::f32x8;
 
-use crate::sampling::Pcg32;
 use crate::simd::Vector3;
 
 /// Paths in a packet.
@@ -61,25 +60,4 @@ pub fn mask_of(cond: impl Fn(usize) -> bool) -> L {
             0.0
         }
     }))
-}
-
-/// One uniform draw per lane of `mask` from its path's stream (0 elsewhere).
-#[inline(always)]
-pub fn draw_1d(mask: L, rngs: &mut [Pcg32]) -> L {
-    let mut u = [0f32; WIDTH];
-    for k in lanes_of(mask.move_mask()) {
-        u[k] = rngs[k].next_1d();
-    }
-    L::from(u)
-}
-
-/// Two uniform draws (one `next_2d`) per lane of `mask`.
-#[inline(always)]
-pub fn draw_2d(mask: L, rngs: &mut [Pcg32]) -> (L, L) {
-    let (mut u, mut v) = ([0f32; WIDTH], [0f32; WIDTH]);
-    for k in lanes_of(mask.move_mask()) {
-        let s = rngs[k].next_2d();
-        (u[k], v[k]) = (s.x, s.y);
-    }
-    (L::from(u), L::from(v))
 }

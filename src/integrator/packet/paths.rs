@@ -9,7 +9,7 @@ use wide::{CmpEq, CmpGe, CmpGt, CmpLt};
 use super::boundary::boundary_sample;
 use super::derivatives::{all_lanes, Derivatives};
 use super::emitters::sample_emitters;
-use super::lanes::{draw_1d, draw_2d, mask_of, L, V3, WIDTH};
+use super::lanes::{mask_of, L, V3, WIDTH};
 use super::shapes::{shadow_transmittance, surface_hit, MediumSpan, Shadow};
 use super::{
     dielectric_of, emitting, gather_media, heterogeneous, medium_normals, offset_magnitude,
@@ -25,7 +25,7 @@ use crate::medium::{
     transmittance_rgb,
 };
 use crate::sampling::warp::cosine_hemisphere;
-use crate::sampling::Pcg32;
+use crate::sampling::{Pcg32, Sampler};
 use crate::scene::Scene;
 
 /// A shadow ray's ∂ ln T, or zero for the power tests' estimator without it.
@@ -278,7 +278,7 @@ impl<const D: bool> PacketPaths<D> {
         }
         let played = self.alive & self.depth.cmp_gt(L::splat(ps.rr_depth as f32));
         if played.any() {
-            let u = draw_1d(played, rngs);
+            let u = rngs.draw_1d(played);
             let weight = if ctx.settings.roulette_by_target {
                 self.beta.add(self.d_beta)
             } else {
@@ -456,14 +456,14 @@ impl<const D: bool> PacketPaths<D> {
         let (collided, flight, volume_albedo) = match ctx.het {
             Some(h) => {
                 // Delta tracking; the majorant is grey, so r is unchanged.
-                let f =
-                    heterogeneous::sample_flight(h, self.o, self.d, ends.t_end, in_medium, rngs);
+                let walk = h.global_segment(self.o, self.d, (L::ZERO, ends.t_end));
+                let f = h.delta_tracking(self.o, self.d, walk, in_medium, rngs);
                 self.beta = self.beta.select(in_medium, self.beta.mul(f.weight));
                 self.scale_derivatives(in_medium, f.weight);
                 (in_medium & f.collided, f.t, f.albedo)
             }
             None => {
-                let u = draw_1d(in_medium, rngs);
+                let u = rngs.draw_1d(in_medium);
                 let flight = sample_distance(m.sigma_hero, u);
                 let collided = in_medium & flight.cmp_lt(ends.t_end);
                 if !ctx.ps.grey {
@@ -588,7 +588,7 @@ impl<const D: bool> PacketPaths<D> {
             }
         }
         // ---- Phase function sampling ----
-        let (u1, u2) = draw_2d(collided, rngs);
+        let (u1, u2) = rngs.draw_2d(collided);
         // Exact sampling (in f32: the packet takes only moderate |g|): the weight is 1.
         let w = hg_sample_angle(m.g, u1);
         let wo = direction_at(d, w, u2);
@@ -755,8 +755,8 @@ impl<const D: bool> PacketPaths<D> {
         }
         // The scalar path draws the BSDF's 1-D sample (the lobe's choice) before the 2-D
         // one; drawn here too, unused, to keep the draws in step.
-        let _ = draw_1d(at_surface, rngs);
-        let (u1, u2) = draw_2d(at_surface, rngs);
+        let _ = rngs.draw_1d(at_surface);
+        let (u1, u2) = rngs.draw_2d(at_surface);
         let wo = to_world(n, cosine_hemisphere(u1, u2));
         if ps.area_emitters {
             self.last_p = self.last_p.select(front, self.o);

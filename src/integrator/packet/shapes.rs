@@ -241,7 +241,8 @@ pub fn shadow_transmittance(
             let through = !blocked & (from_inside | from_outside);
             if through.any() {
                 let seg = (start, end);
-                tr = tr.mul(heterogeneous::transmittance(h, o, d, seg, through, rngs));
+                let walk = h.global_segment(o, d, seg);
+                tr = tr.mul(h.ratio_tracking(o, d, walk, through, rngs));
                 if chosen {
                     let depth = heterogeneous::depth_estimate(h, o, d, seg, through);
                     d_log = d_log.sub(depth);

@@ -17,11 +17,13 @@
 //! product of σ_n / σ̄ over tentative collisions, whose expectation is
 //! `exp(−∫ σ_t)` per channel (Mitsuba's volpath estimates it the same way).
 //!
-//! Both draw their tentative collisions by one loop over the ray's majorant segments
+//! Both are written once over the number type (one path, or lanes of paths) and draw
+//! their tentative collisions by one loop over the ray's majorant segments
 //! (`medium::tracking`, pbrt-v4's `SampleT_maj`): where σ_t is a clamped grid the
 //! segments are the cells of its local majorants (`medium::majorant`), each at its own
 //! σ̄, with the weights above taken against that σ̄; elsewhere one segment over the
-//! span at the global σ̄. Any majorant gives the same expectation.
+//! span at the global σ̄ (as the lanes walk every grid). Any majorant gives the same
+//! expectation.
 //!
 //! A `homogeneous` medium whose albedo is a grid also lands here, with a constant
 //! unbounded σ_t: then σ̄ = σ_t for grey extinction and no null collision happens.
@@ -31,8 +33,8 @@ use glam::{Vec3, Vec3A};
 use super::grid::Volume;
 use super::lookup_bounds::LookupBounds;
 use super::majorant::{self, MajorantGrid};
-use super::tracking::{sample_t_maj, MajorantSegment, MajorantSegments};
-use crate::sampling::Pcg32;
+use super::tracking::{sample_t_maj, MajorantSegment, MajorantSegments, MajorantWalk, OneSegment};
+use crate::sampling::{Pcg32, Sampler};
 use crate::simd::{Float, Gather, Vector3};
 
 /// Grids of more values than this get lookup bounds: the bounds save reads that miss the
@@ -57,6 +59,16 @@ pub struct HeterogeneousMedium {
     pub bounds: Option<LookupBounds>,
 }
 
+/// Where free flights ended, per path: at a real collision (`collided`, at `t`, the
+/// albedo volume's value there) or past their segments (`t` is then 0 and the albedo
+/// 1), and the weight each contributes (`HeterogeneousMedium::sample_flight`).
+pub struct Flight<F: Float> {
+    pub collided: F::Mask,
+    pub t: F,
+    pub weight: Vector3<F>,
+    pub albedo: Vector3<F>,
+}
+
 /// What a free flight found: a real collision, or none before `tmax`.
 pub struct Collision {
     pub t: f32,
@@ -68,17 +80,47 @@ impl HeterogeneousMedium {
     /// The ray's stretch [t0, t1] ⊂ [0, tmax] in which extinction can be non-zero.
     #[inline]
     pub fn span(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(f32, f32)> {
+        let (t0, t1, some) = self.span_at(o.into(), d.into(), (0.0, tmax));
+        some.then_some((t0, t1))
+    }
+
+    /// [`HeterogeneousMedium::span`] over any number type: the stretches [t0, t1] ⊂
+    /// [tmin, tmax] of the rays from `o` along `d`, and the paths where one is not
+    /// empty.
+    #[inline(always)]
+    pub fn span_at<F: Gather>(
+        &self,
+        o: Vector3<F>,
+        d: Vector3<F>,
+        (tmin, tmax): (F, F),
+    ) -> (F, F, F::Mask) {
         if !self.bounded {
-            return Some((0.0, tmax));
+            return (tmin, tmax, tmin.le(tmax));
         }
         let [lo, hi] = self.sigma_t.bbox;
-        let inv = d.recip();
-        let a = (Vec3A::from(lo) - o) * inv;
-        let b = (Vec3A::from(hi) - o) * inv;
-        // NaN (0 · ∞ on a slab's plane) is dropped by min/max.
-        let t0 = a.min(b).max_element().max(0.0);
-        let t1 = a.max(b).min_element().min(tmax);
-        (t0 <= t1).then_some((t0, t1))
+        let bbox = [Vec3A::from(lo), Vec3A::from(hi)];
+        F::box_span(bbox, F::point(o), F::point(d), (tmin, tmax))
+    }
+
+    /// The rays' one majorant segment each: the span within [tmin, tmax] at the global
+    /// σ̄ (none where σ̄ = 0), the walk the lanes track along.
+    #[inline(always)]
+    pub fn global_segment<F: Gather>(
+        &self,
+        o: Vector3<F>,
+        d: Vector3<F>,
+        (tmin, tmax): (F, F),
+    ) -> OneSegment<F> {
+        let (t_min, t_max, some) = self.span_at(o, d, (tmin, tmax));
+        let sigma_maj = F::of(self.majorant as f64);
+        OneSegment {
+            segment: MajorantSegment {
+                t_min,
+                t_max,
+                sigma_maj,
+            },
+            some: some & sigma_maj.gt(F::zero()),
+        }
     }
 
     /// An unbiased estimate of ∫ σ (σ_t before `scale`) over the segment from `o` along
@@ -155,58 +197,97 @@ impl HeterogeneousMedium {
         tmax: f32,
         rng: &mut Pcg32,
     ) -> (Option<Collision>, Vec3) {
-        let mut w = Vec3::ONE;
-        // Grey σ_t: both weights are 1 (exactly, where rounding would make them 1 ± ulp).
-        let grey = self.sigma_t.is_grey();
-        let end = self.track(o, d, tmax, rng, |t, major, rng| {
-            let p = o + d * t;
-            let u = rng.next_1d();
-            let real = match self.decided_by_bounds(p, u, major) {
-                Some(real) => real,
-                None => {
-                    let sigma_t = self.sigma_t_at(p).into();
-                    let real = u < real_probability(sigma_t, major);
-                    let (weight, stuck) = match real {
-                        true => (real_weight(sigma_t), false),
-                        false => null_weight(sigma_t, major),
-                    };
-                    if stuck {
-                        w = Vec3::ZERO;
-                        return Some(None);
-                    }
-                    if !grey {
-                        w *= Vec3::from(weight);
-                    }
-                    real
-                }
-            };
-            real.then(|| {
-                Some(Collision {
-                    t,
-                    albedo: self.albedo.eval(p),
-                })
-            })
+        let segments = self.majorant_segments(o, d, tmax);
+        let f = self.delta_tracking(o.into(), d.into(), segments, true, rng);
+        let collision = f.collided.then(|| Collision {
+            t: f.t,
+            albedo: f.albedo.into(),
         });
-        (end.flatten(), w)
+        (collision, f.weight.into())
     }
 
-    /// Whether the lookup bounds alone decide delta tracking's tentative collision at
-    /// `p` with draw `u` at majorant `major`: real (u < P(lo)), null (u ≥ P(hi)), or
-    /// None, the grid to be read. P rises with σ_t, so each answer is the one the
-    /// lookup would give.
-    #[inline]
-    pub fn decided_by_bounds(&self, p: Vec3A, u: f32, major: f32) -> Option<bool> {
-        let q = self.sigma_t.to_local.transform_point3a(p).to_array();
-        match self.decided_by_bounds_at(q, u, major, true)? {
-            (true, _) => Some(true),
-            (_, true) => Some(false),
-            _ => None,
+    /// Delta tracking along `segments` of the rays from `o` along unit `d`, for the
+    /// paths of `mask` ([`HeterogeneousMedium::sample_flight`] over any number type).
+    #[inline(always)]
+    pub fn delta_tracking<F: Gather, S: Sampler<F> + ?Sized>(
+        &self,
+        o: Vector3<F>,
+        d: Vector3<F>,
+        segments: impl MajorantWalk<F>,
+        mask: F::Mask,
+        sampler: &mut S,
+    ) -> Flight<F> {
+        let (o, d) = (F::point(o), F::point(d));
+        let mut weight = Vector3::all(F::one());
+        let mut at = F::zero();
+        let mut collided = mask & !mask;
+        let scale = F::of(self.scale as f64);
+        // Grey σ_t: both weights are 1 (exactly, where rounding would make them 1 ± ulp).
+        let grey = self.sigma_t.is_grey();
+        sample_t_maj(
+            segments,
+            mask,
+            sampler,
+            #[inline(always)]
+            |t, major, active, sampler| {
+                let q: [F; 3] = self.sigma_t.local_point(F::along(o, d, t));
+                // Real with probability P = mean(σ_t) / σ̄, else null; the grid read only
+                // where its bounds leave the answer open.
+                let u = sampler.draw_1d(active);
+                let none = active & !active;
+                let (sure_real, sure_null) = self
+                    .decided_by_bounds_at(q, u, major, active)
+                    .unwrap_or((none, none));
+                let look = active & !(sure_real | sure_null);
+                let sigma_t = match F::any(look) {
+                    true => self.sigma_t.eval_local(q, look).scale(scale),
+                    false => Vector3::all(F::zero()),
+                };
+                let real = sure_real | (look & u.lt(real_probability(sigma_t, major)));
+                if F::any(real) {
+                    if !grey {
+                        weight = weight.select(look & real, weight.mul(real_weight(sigma_t)));
+                    }
+                    at = F::select(real, t, at);
+                    collided = collided | real;
+                }
+                // No null collision can happen where σ_n is 0 in every channel (σ_t at the
+                // majorant): the flight passes with weight 0 there. (A null the bounds
+                // decide has σ_t below σ̄.)
+                let null = active & !real & look;
+                let (null_w, stuck) = null_weight(sigma_t, major);
+                let stuck = null & stuck;
+                weight = weight.select(stuck, Vector3::all(F::zero()));
+                if !grey {
+                    weight = weight.select(null & !stuck, weight.mul(null_w));
+                }
+                real | stuck
+            },
+        );
+        // The albedo at the collisions, looked up once the loop is done (fewer values
+        // live across its draws).
+        let ones = Vector3::all(F::one());
+        let albedo = match F::any(collided) {
+            true => ones.select(
+                collided,
+                self.albedo.eval_at(F::vector(F::along(o, d, at)), collided),
+            ),
+            false => ones,
+        };
+        Flight {
+            collided,
+            t: at,
+            weight,
+            albedo,
         }
     }
 
-    /// [`HeterogeneousMedium::decided_by_bounds`] over any number type, at points `q`
-    /// of sigma_t's unit cube (`Volume::local_point`): of the lanes of `mask`, those the
-    /// bounds make real and those they make null; None where the medium has no bounds.
+    /// Whether the lookup bounds alone decide delta tracking's tentative collisions at
+    /// points `q` of sigma_t's unit cube (`Volume::local_point`) with draws `u` at
+    /// majorants `major`: of the paths of `mask`, those the bounds make real
+    /// (u < P(lo)) and those they make null (u ≥ P(hi)), the others' grid to be read;
+    /// None where the medium has no bounds. P rises with σ_t, so each answer is the one
+    /// the lookup would give.
     #[inline(always)]
     pub fn decided_by_bounds_at<F: Gather>(
         &self,
@@ -222,24 +303,61 @@ impl HeterogeneousMedium {
 
     /// Ratio tracking: an unbiased estimate of `exp(−∫₀^dist σ_t)` from `o` along `d`.
     pub fn transmittance(&self, o: Vec3A, d: Vec3A, dist: f32, rng: &mut Pcg32) -> Vec3 {
-        let mut tr = Vec3::ONE;
-        let ended = self.track(o, d, dist, rng, |t, major, rng| {
-            tr *= Vec3::from(ratio_weight(self.sigma_t_at(o + d * t).into(), major));
-            // Russian roulette once little is left (unbiased: survivors weigh 1/q).
-            let (play, end) = ratio_roulette(tr.max_element());
-            if end || play && rng.next_1d() >= RATIO_SURVIVAL {
-                return Some(());
-            }
-            if play {
-                tr *= 1.0 / RATIO_SURVIVAL;
-            }
-            None
-        });
-        if ended.is_some() {
-            Vec3::ZERO
-        } else {
-            tr
-        }
+        let segments = self.majorant_segments(o, d, dist);
+        self.ratio_tracking(o.into(), d.into(), segments, true, rng)
+            .into()
+    }
+
+    /// Ratio tracking along `segments` of the rays from `o` along unit `d`, for the
+    /// paths of `mask` (1 elsewhere): [`HeterogeneousMedium::transmittance`] over any
+    /// number type, with its Russian roulette.
+    #[inline(always)]
+    pub fn ratio_tracking<F: Gather, S: Sampler<F> + ?Sized>(
+        &self,
+        o: Vector3<F>,
+        d: Vector3<F>,
+        segments: impl MajorantWalk<F>,
+        mask: F::Mask,
+        sampler: &mut S,
+    ) -> Vector3<F> {
+        let (o, d) = (F::point(o), F::point(d));
+        let mut tr = Vector3::all(F::one());
+        let scale = F::of(self.scale as f64);
+        let survival = F::of(RATIO_SURVIVAL as f64);
+        sample_t_maj(
+            segments,
+            mask,
+            sampler,
+            #[inline(always)]
+            |t, major, active, sampler| {
+                let q: [F; 3] = self.sigma_t.local_point(F::along(o, d, t));
+                // Where the bounds say the cell is empty σ_t is 0 and the factor exactly 1:
+                // no read.
+                let look = match &self.bounds {
+                    Some(b) => active & b.at_lanes(q, active)[1].gt(F::zero()),
+                    None => active,
+                };
+                let sigma_t = match F::any(look) {
+                    true => self.sigma_t.eval_local(q, look).scale(scale),
+                    false => Vector3::all(F::zero()),
+                };
+                tr = tr.select(active, ratio_weight(sigma_t, major).mul(tr));
+                // Russian roulette once little is left (unbiased: survivors weigh 1/q); a
+                // draw only where something is left.
+                let (play, end) = ratio_roulette(tr.max_element());
+                let (play, end) = (active & play, active & end);
+                let mut ended = end;
+                if F::any(play) {
+                    let u = sampler.draw_1d(play);
+                    let lost = play & u.ge(survival);
+                    ended = ended | lost;
+                    tr = tr.select(play & !lost, tr.scale(F::one() / survival));
+                }
+                tr = tr.select(ended, Vector3::all(F::zero()));
+                ended
+            },
+        );
+        tr
     }
 
     /// The majorant segments of `o + t d` within the span up to `tmax` (pbrt-v4's
@@ -258,20 +376,6 @@ impl HeterogeneousMedium {
                 sigma_maj: self.majorant,
             })),
         }
-    }
-
-    /// Tentative collisions along `o + t d` within the span up to `tmax`, at the
-    /// majorant segments' rates: `collide(t, σ̄, rng)` decides at each; the tracking
-    /// ends with its answer, or None past the span.
-    fn track<T>(
-        &self,
-        o: Vec3A,
-        d: Vec3A,
-        tmax: f32,
-        rng: &mut Pcg32,
-        collide: impl FnMut(f32, f32, &mut Pcg32) -> Option<T>,
-    ) -> Option<T> {
-        sample_t_maj(self.majorant_segments(o, d, tmax), rng, collide)
     }
 }
 
@@ -343,138 +447,4 @@ pub fn ratio_roulette<F: Float>(m: F) -> (F::Mask, F::Mask) {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::medium::grid::{Source, Volume};
-    use glam::Affine3A;
-
-    fn medium(v: Vec3) -> HeterogeneousMedium {
-        let sigma_t = Volume::new(Source::Const(v), Affine3A::IDENTITY);
-        HeterogeneousMedium {
-            majorant: 2.0 * sigma_t.max,
-            sigma_t,
-            albedo: Volume::new(Source::Const(Vec3::splat(0.5)), Affine3A::IDENTITY),
-            scale: 1.0,
-            bounded: true,
-            majorants: None,
-            bounds: None,
-        }
-    }
-
-    #[test]
-    fn ratio_and_delta_tracking_give_beer_lambert() {
-        // Chromatic σ_t in the unit box, ray through it along x from outside.
-        let m = medium(Vec3::new(1.0, 2.0, 0.5));
-        let o = Vec3A::new(-1.0, 0.5, 0.5);
-        let d = Vec3A::X;
-        let want = (-Vec3::new(1.0, 2.0, 0.5)).exp();
-        let mut rng = Pcg32::new(7, 1);
-        let n = 200_000;
-        let mut tr = Vec3::ZERO;
-        let mut pass = Vec3::ZERO;
-        for _ in 0..n {
-            tr += m.transmittance(o, d, 3.0, &mut rng);
-            let (c, w) = m.sample_flight(o, d, 3.0, &mut rng);
-            if c.is_none() {
-                pass += w;
-            }
-        }
-        for (name, got) in [("ratio", tr / n as f32), ("delta", pass / n as f32)] {
-            let err = (got - want).abs().max_element();
-            assert!(err < 6e-3, "{name}: {got} vs {want}");
-        }
-    }
-
-    /// A sparse 3-channel grid, turned and stretched, with local majorants or without.
-    fn grid_medium(scale: f32, local: bool) -> HeterogeneousMedium {
-        use crate::medium::grid::{parse_vol, write_vol, Filter, Wrap};
-        let res = [12, 9, 7];
-        let data: Vec<f32> = (0..12 * 9 * 7)
-            .flat_map(|i| {
-                let v = if i % 5 == 0 || i % 12 < 3 {
-                    1.0 + (i % 7) as f32
-                } else {
-                    0.0
-                };
-                [v, 0.5 * v, 1.5 * v]
-            })
-            .collect();
-        let grid = parse_vol(&write_vol(res, 3, &data)).unwrap();
-        let to_world = Affine3A::from_scale_rotation_translation(
-            Vec3::new(1.0, 1.5, 0.8),
-            glam::Quat::from_rotation_z(0.3),
-            Vec3::ZERO,
-        );
-        let sigma_t = Volume::new(
-            Source::Grid {
-                grid,
-                filter: Filter::Trilinear,
-                wrap: Wrap::Clamp,
-            },
-            to_world,
-        );
-        let majorants = local
-            .then(|| crate::medium::majorant::MajorantGrid::new(&sigma_t, scale))
-            .flatten();
-        HeterogeneousMedium {
-            majorant: sigma_t.max * scale,
-            majorants,
-            sigma_t,
-            albedo: Volume::new(Source::Const(Vec3::splat(0.5)), Affine3A::IDENTITY),
-            scale,
-            bounded: true,
-            bounds: None,
-        }
-    }
-
-    /// Tracking by local majorants has the global majorant's expectation: transmittance
-    /// (ratio tracking, and delta tracking's pass weight) and the mean collision
-    /// distance, per channel, within 5 standard errors over rays through and beside the
-    /// box. Power: against the medium 10% denser, some of them are off by more.
-    #[test]
-    fn local_majorants_track_the_same_medium() {
-        let global = grid_medium(1.0, false);
-        let local = grid_medium(1.0, true);
-        let denser = grid_medium(1.1, false);
-        assert!(local.majorants.is_some());
-        let rays = [
-            (Vec3A::new(-1.0, 0.7, 0.4), Vec3A::new(1.0, 0.1, 0.05)),
-            (Vec3A::new(0.3, -1.0, 0.3), Vec3A::new(0.2, 1.0, 0.1)),
-            (Vec3A::new(1.5, 1.9, 0.9), Vec3A::new(-1.0, -0.7, -0.3)),
-        ];
-        let n = 40_000;
-        let mut worst_off = 0f64;
-        for (r, (o, d)) in rays.into_iter().enumerate() {
-            let d = d.normalize();
-            let mut rng = Pcg32::new(17, r as u64);
-            let mut estimates = |m: &HeterogeneousMedium| {
-                let mut v: [Vec<f64>; 7] = Default::default();
-                for _ in 0..n {
-                    let tr = m.transmittance(o, d, 4.0, &mut rng);
-                    let (c, w) = m.sample_flight(o, d, 4.0, &mut rng);
-                    for ch in 0..3 {
-                        v[ch].push(tr[ch] as f64);
-                        v[3 + ch].push(if c.is_some() { 0.0 } else { w[ch] as f64 });
-                    }
-                    v[6].push(c.map_or(0.0, |c| c.t as f64));
-                }
-                v.map(|x| {
-                    let mean = x.iter().sum::<f64>() / n as f64;
-                    let var = x.iter().map(|y| (y - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-                    (mean, var / n as f64)
-                })
-            };
-            let (a, b, c) = (estimates(&global), estimates(&local), estimates(&denser));
-            for i in 0..7 {
-                let z = |x: (f64, f64), y: (f64, f64)| (x.0 - y.0) / (x.1 + y.1).sqrt().max(1e-30);
-                let same = z(a[i], b[i]);
-                assert!(same.abs() < 5.0, "ray {r}, estimate {i}: z = {same}");
-                worst_off = worst_off.max(z(b[i], c[i]).abs());
-            }
-        }
-        assert!(
-            worst_off >= 5.0,
-            "10% denser undetected: largest |z| {worst_off}"
-        );
-    }
-}
+mod tests;
