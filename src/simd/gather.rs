@@ -2,7 +2,9 @@
 //! loads `data[i]` in each lane, so that table lookups (a volume's voxels, the lookup
 //! bounds' cells) are written once over the number type, as the kernels are. On one
 //! path an index is a `usize` and a gather one load; in lanes it is `wide`'s `i32x8`
-//! and a gather one load per lane that is on.
+//! and a gather one load per lane that is on. Beside them, what a lookup along a ray
+//! needs where one path and lanes hold things differently: the point type (glam's
+//! `Vec3A` on one path), its transform and the ray–box slab test.
 
 use std::ops::Add;
 
@@ -295,5 +297,56 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The lanes' point transform and slab test give one path's answers to the bit, on
+    /// rays from all around a box (misses included), d with zeros among them. Power:
+    /// a box 1% larger changes some answers.
+    #[test]
+    fn lanes_transform_and_clip_as_one_path() {
+        let m = Affine3A::from_scale_rotation_translation(
+            glam::Vec3::new(0.5, 2.0, 1.5),
+            glam::Quat::from_rotation_y(0.7),
+            glam::Vec3::new(0.1, -0.3, 2.0),
+        );
+        let unit = [Vec3A::ZERO, Vec3A::ONE];
+        let larger = [Vec3A::splat(-0.01), Vec3A::splat(1.01)];
+        let mut rng = crate::sampling::Pcg32::new(4, 9);
+        let mut moved = 0;
+        for _ in 0..200 {
+            let rays: [(Vec3A, Vec3A); 8] = std::array::from_fn(|k| {
+                let mut v = || Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d());
+                let o = v() * 3.0 - Vec3A::ONE;
+                let mut d = v() - Vec3A::splat(0.5);
+                if k == 3 {
+                    d.x = 0.0;
+                }
+                (o, d.normalize())
+            });
+            let lanes = |f: fn(&(Vec3A, Vec3A)) -> Vec3A| {
+                let v = rays.map(|r| f(&r));
+                Vector3::new(
+                    f32x8::from(v.map(|p| p.x)),
+                    f32x8::from(v.map(|p| p.y)),
+                    f32x8::from(v.map(|p| p.z)),
+                )
+            };
+            let (o, d) = (lanes(|r| r.0), lanes(|r| r.1));
+            let q = f32x8::transform_point(&m, o).map(|a| a.to_array());
+            let span = (f32x8::splat(0.0), f32x8::splat(4.0));
+            let (t0, t1, some) = f32x8::box_span(unit, o, d, span);
+            let (a0, a1, _) = f32x8::box_span(larger, o, d, span);
+            for (k, &(ok, dk)) in rays.iter().enumerate() {
+                let one = f32::transform_point(&m, ok);
+                assert_eq!([q[0][k], q[1][k], q[2][k]], one, "ray {k}");
+                let (s0, s1, hit) = f32::box_span(unit, ok, dk, (0.0, 4.0));
+                assert_eq!(some.move_mask() >> k & 1 == 1, hit, "ray {k}");
+                if hit {
+                    assert_eq!((t0.to_array()[k], t1.to_array()[k]), (s0, s1), "ray {k}");
+                    moved += ((a0.to_array()[k], a1.to_array()[k]) != (s0, s1)) as usize;
+                }
+            }
+        }
+        assert!(moved > 0, "a 1% larger box unnoticed");
     }
 }
