@@ -311,11 +311,16 @@ mod tests {
         );
         let unit = [Vec3A::ZERO, Vec3A::ONE];
         let larger = [Vec3A::splat(-0.01), Vec3A::splat(1.01)];
-        let mut rng = crate::sampling::Pcg32::new(4, 9);
+        // A small LCG of its own: sampling sits above simd.
+        let mut state = 0x9e37_79b9_u32;
+        let mut next = move || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1u32 << 24) as f32
+        };
         let mut moved = 0;
         for _ in 0..200 {
             let rays: [(Vec3A, Vec3A); 8] = std::array::from_fn(|k| {
-                let mut v = || Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d());
+                let mut v = || Vec3A::new(next(), next(), next());
                 let o = v() * 3.0 - Vec3A::ONE;
                 let mut d = v() - Vec3A::splat(0.5);
                 if k == 3 {
