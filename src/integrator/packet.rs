@@ -7,7 +7,7 @@
 //! It takes the scenes whose paths need little but lane arithmetic ([`PacketScene::new`]
 //! lists them and says why a scene is refused): media in spheres and cubes behind
 //! `null` or smooth `dielectric` boundaries (homogeneous ones, or one heterogeneous
-//! medium, tracked in `heterogeneous`), diffuse rectangles, disks, spheres and
+//! medium, tracked by `medium::heterogeneous`), diffuse rectangles, disks, spheres and
 //! cubes in a medium or in empty space, the camera in either, lit by area emitters on
 //! those surfaces, point, spot and directional emitters and a `constant` sky. A vertex
 //! is then a free flight, the tests of a few shapes, an emitter sample and a phase,
@@ -47,7 +47,6 @@
 mod boundary;
 mod derivatives;
 mod emitters;
-mod heterogeneous;
 mod lanes;
 mod paths;
 mod scene;

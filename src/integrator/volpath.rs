@@ -146,11 +146,12 @@ fn medium_emitter_sample(
     if q < 1.0 && !(q > 0.0 && rng.next_1d() < q) {
         return None;
     }
-    let mut through = shadow_transmittance(scene, ray, diff, rng);
+    let through = shadow_transmittance(scene, ray, diff, rng);
+    let mut tr = Vec3::from(through.tr);
     if q < 1.0 {
-        through.tr /= q;
+        tr /= q;
     }
-    if through.tr == Vec3::ZERO {
+    if tr == Vec3::ZERO {
         return None;
     }
     let w = if es.delta {
@@ -159,8 +160,8 @@ fn medium_emitter_sample(
         mis_weight(es.pdf * p_select, phase_val)
     };
     Some(MediumLight {
-        value: phase_val * es.weight * through.tr / p_select * w,
-        d_log_tr: through.d_log,
+        value: phase_val * es.weight * tr / p_select * w,
+        d_log_tr: through.d_log.into(),
         d: es.d,
     })
 }

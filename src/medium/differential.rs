@@ -136,7 +136,7 @@ impl DifferentialTracking {
     /// Delta tracking at the majorants above from `o` along unit `d` up to `tmax` (grey
     /// σ_t; P_r = σ_t / σ̄', so every weight is 1 and α): `collide(c, real)` is told of
     /// every tentative collision, real or null, and the real one, if any, is returned.
-    pub fn sample_flight(
+    pub fn delta_tracking(
         &self,
         medium: &HeterogeneousMedium,
         o: Vec3A,
@@ -177,7 +177,7 @@ impl DifferentialTracking {
     /// Ratio tracking at the majorants above: an unbiased estimate of the transmittance
     /// `exp(−∫₀^dist σ_t)` from `o` along `d` (grey); `null(p, σ_n)` is told of every
     /// tentative collision, whose factor σ_n/σ̄' has the derivative (2).
-    pub fn transmittance(
+    pub fn ratio_tracking(
         &self,
         medium: &HeterogeneousMedium,
         o: Vec3A,
@@ -277,9 +277,9 @@ mod tests {
             };
             let (mut a, mut b, mut c) = (vec![], vec![], vec![]);
             for _ in 0..n {
-                let tr = dt.transmittance(&m, o, d, 3.0, &mut rng, |_, s| assert!(s > 0.0));
+                let tr = dt.ratio_tracking(&m, o, d, 3.0, &mut rng, |_, s| assert!(s > 0.0));
                 a.push(tr.x as f64);
-                let hit = dt.sample_flight(&m, o, d, 3.0, &mut rng, |c, _| {
+                let hit = dt.delta_tracking(&m, o, d, 3.0, &mut rng, |c, _| {
                     assert!(c.majorant - c.sigma_t >= 0.2 * c.majorant * 0.999)
                 });
                 b.push(if hit.is_none() { 1.0 } else { 0.0 });

@@ -15,6 +15,7 @@ pub mod heterogeneous;
 pub mod lookup_bounds;
 pub mod majorant;
 pub mod phase;
+pub mod segment;
 pub mod tracking;
 
 use glam::Vec3;
@@ -23,6 +24,7 @@ use crate::simd::{Float, Vector3};
 
 pub use heterogeneous::HeterogeneousMedium;
 pub use phase::Phase;
+pub use segment::{Tracked, Transmitted};
 
 /// A participating medium as the scene holds it (Mitsuba's `Medium`): the homogeneous
 /// case in full, or, where `heterogeneous` is set, the medium that varies in space with

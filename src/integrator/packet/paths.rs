@@ -10,10 +10,10 @@ use super::boundary::boundary_sample;
 use super::derivatives::{all_lanes, Derivatives};
 use super::emitters::sample_emitters;
 use super::lanes::{mask_of, L, V3, WIDTH};
-use super::shapes::{shadow_transmittance, surface_hit, MediumSpan, Shadow};
+use super::shapes::{shadow_transmittance, surface_hit, MediumSpan};
 use super::{
-    dielectric_of, emitting, gather_media, heterogeneous, medium_normals, offset_magnitude,
-    surface_emission, surface_lanes, MediumLanes, PacketScene, PacketSettings, MAX_NULL_CROSSINGS,
+    dielectric_of, emitting, gather_media, medium_normals, offset_magnitude, surface_emission,
+    surface_lanes, MediumLanes, PacketScene, PacketSettings, MAX_NULL_CROSSINGS,
 };
 use crate::geometry::to_world;
 use crate::integrator::roulette::continue_probability;
@@ -22,7 +22,7 @@ use crate::medium::heterogeneous::HeterogeneousMedium;
 use crate::medium::phase::{direction_at, hg_eval, hg_log_derivative_g, hg_sample_angle};
 use crate::medium::{
     collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight, sample_distance,
-    transmittance_rgb,
+    transmittance_rgb, Tracked, Transmitted,
 };
 use crate::sampling::warp::cosine_hemisphere;
 use crate::sampling::{Pcg32, Sampler};
@@ -30,7 +30,7 @@ use crate::scene::Scene;
 
 /// A shadow ray's ∂ ln T, or zero for the power tests' estimator without it.
 #[inline(always)]
-fn shadow_score(ctx: &Context, shadow: &Shadow) -> V3 {
+fn shadow_score(ctx: &Context, shadow: &Transmitted<L>) -> V3 {
     match ctx.settings.without_shadow_term {
         true => V3::splat(Vec3::ZERO),
         false => shadow.d_log,
@@ -365,7 +365,7 @@ impl<const D: bool> PacketPaths<D> {
         } else {
             L::ZERO
         };
-        let (collided, flight, d_beta_before) = self.sample_flight(ctx, ends, m, rngs);
+        let (collided, flight, d_beta_before) = self.flight_ends(ctx, ends, m, rngs);
         let passed = in_medium & !collided;
         let mut finite = self.beta.is_finite() & self.r_u.is_finite();
         if D {
@@ -445,7 +445,7 @@ impl<const D: bool> PacketPaths<D> {
     /// without this vertex's own α (for the power tests' wrong variant only). β and dβ
     /// take the vertex's α (the render's factor times the albedo volume's value).
     #[inline(always)]
-    fn sample_flight(
+    fn flight_ends(
         &mut self,
         ctx: &Context,
         ends: &RayEnds,
@@ -453,13 +453,21 @@ impl<const D: bool> PacketPaths<D> {
         rngs: &mut [Pcg32],
     ) -> (L, L, V3) {
         let in_medium = ends.in_medium;
+        // d/d scale in a heterogeneous medium, added once β has its α.
+        let mut scale_score = None;
         let (collided, flight, volume_albedo) = match ctx.het {
             Some(h) => {
                 // Delta tracking; the majorant is grey, so r is unchanged.
-                let walk = h.global_segment(self.o, self.d, (L::ZERO, ends.t_end));
+                let walk = L::majorant_walk(h, self.o, self.d, (L::ZERO, ends.t_end));
                 let f = h.delta_tracking(self.o, self.d, walk, in_medium, rngs);
                 self.beta = self.beta.select(in_medium, self.beta.mul(f.weight));
                 self.scale_derivatives(in_medium, f.weight);
+                if self.derivs.sigma_on() {
+                    let mask = in_medium & m.chosen_sigma;
+                    let ray = (self.o, self.d);
+                    let score = h.flight_scale_score(ray, &f, ends.t_end, mask);
+                    scale_score = Some((mask, score));
+                }
                 (in_medium & f.collided, f.t, f.albedo)
             }
             None => {
@@ -513,15 +521,8 @@ impl<const D: bool> PacketPaths<D> {
             .beta
             .select(collided, self.beta.mul(m.albedo.mul(volume_albedo)));
         self.derivs.scale(collided, m.albedo.mul(volume_albedo));
-        if let Some(h) = ctx.het.filter(|_| self.derivs.sigma_on()) {
-            // d/d scale: 1/scale at a real collision (β with its α now), −∫σ over the
-            // flight (one lookup's estimate).
-            let mask = in_medium & m.chosen_sigma;
-            let end = collided.blend(flight, ends.t_end);
-            let depth = heterogeneous::depth_estimate(h, self.o, self.d, (L::ZERO, end), mask);
-            let s = collided.blend(L::splat(1.0 / h.scale), L::ZERO);
-            self.derivs
-                .add_sigma(mask, self.beta, V3::all(s).sub(depth));
+        if let Some((mask, score)) = scale_score {
+            self.derivs.add_sigma(mask, self.beta, score);
         }
         if !ctx.ps.grey && ctx.het.is_none() {
             // Keep mean(r) = 1 (volpath's rescaling).

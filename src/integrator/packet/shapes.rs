@@ -7,10 +7,9 @@
 use glam::{Vec3, Vec4};
 use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
-use super::heterogeneous;
 use super::lanes::{L, V3};
 use super::scene::{MediumKind, PacketScene, SurfaceShape};
-use crate::medium::transmittance_rgb;
+use crate::medium::Transmitted;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
 
@@ -194,14 +193,6 @@ pub fn surface_normal(ps: &PacketScene, k: usize, p: V3) -> V3 {
     }
 }
 
-/// A shadow ray's transmittance, and ∂ ln T in the differentiated medium's extinction
-/// (`volpath::shadow::Transmitted`): −ℓ for the length ℓ in a homogeneous one, −∫σ (an
-/// estimate) in a heterogeneous one, per channel; 0 where none is differentiated.
-pub struct Shadow {
-    pub tr: V3,
-    pub d_log: V3,
-}
-
 /// The transmittance of shadow rays from `o` along unit `d` over `dist`, the origin in
 /// medium shape `inside` (−1: empty space) and on surface `skip` (−1: none), for the
 /// lanes of `mask`: e^{−σ_t ℓ} for the length ℓ of the ray in each homogeneous medium,
@@ -217,14 +208,13 @@ pub fn shadow_transmittance(
     mask: L,
     extinction: Option<u32>,
     rngs: &mut [Pcg32],
-) -> Shadow {
+) -> Transmitted<L> {
     let mut blocked = !mask;
     for k in 0..ps.surfaces.len() {
         let (hit, t) = surface_hit(ps, k, o, d, skip);
         blocked |= hit & t.cmp_lt(dist);
     }
-    let mut tr = V3::splat(Vec3::ONE);
-    let mut d_log = V3::splat(Vec3::ZERO);
+    let mut out = Transmitted::clear();
     for (i, m) in ps.media_shapes.iter().enumerate() {
         let span = MediumSpan::new(&m.kind, o, d);
         let from_inside = inside.cmp_eq(L::splat(i as f32));
@@ -233,35 +223,15 @@ pub fn shadow_transmittance(
             blocked |= from_inside | (span.enters & span.near.cmp_lt(dist));
             continue;
         }
+        let from_outside = span.enters & span.near.cmp_lt(dist);
+        let start = from_inside.blend(L::ZERO, span.near);
+        let end = from_inside.blend(span.exit, span.far).min(dist);
+        let through = !blocked & (from_inside | from_outside);
+        let medium = &scene.media[m.medium as usize];
         let chosen = extinction == Some(m.medium);
-        if let Some(h) = scene.media[m.medium as usize].heterogeneous.as_deref() {
-            let from_outside = span.enters & span.near.cmp_lt(dist);
-            let start = from_inside.blend(L::ZERO, span.near);
-            let end = from_inside.blend(span.exit, span.far).min(dist);
-            let through = !blocked & (from_inside | from_outside);
-            if through.any() {
-                let seg = (start, end);
-                let walk = h.global_segment(o, d, seg);
-                tr = tr.mul(h.ratio_tracking(o, d, walk, through, rngs));
-                if chosen {
-                    let depth = heterogeneous::depth_estimate(h, o, d, seg, through);
-                    d_log = d_log.sub(depth);
-                }
-            }
-            continue;
-        }
-        let through = (span.far.min(dist) - span.near.min(dist)).max(L::ZERO);
-        let len = from_inside.blend(span.exit.min(dist), span.enters.blend(through, L::ZERO));
-        if len.cmp_gt(L::ZERO).any() {
-            let sigma_t = ps.media[m.medium as usize].sigma_t;
-            tr = tr.mul(transmittance_rgb(V3::splat(sigma_t), len));
-            if chosen {
-                d_log = d_log.sub(V3::all(len));
-            }
-        }
+        let seg = medium.segment_transmittance((o, d), (start, end), through, chosen, rngs);
+        out = out.then(seg);
     }
-    Shadow {
-        tr: tr.select(blocked, V3::splat(Vec3::ZERO)),
-        d_log,
-    }
+    out.tr = out.tr.select(blocked, V3::splat(Vec3::ZERO));
+    out
 }

@@ -16,6 +16,7 @@ use crate::integrator::emitters::{sample_light_at_surface, skip_emitters};
 use crate::integrator::roulette::continue_probability;
 use crate::integrator::sample::PathSample;
 use crate::medium::heterogeneous::HeterogeneousMedium;
+use crate::medium::Tracked;
 use crate::medium::{
     collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight, Medium,
 };
@@ -268,39 +269,36 @@ impl<'a> PathState<'a> {
         let albedo = settings.albedo[mi as usize];
         let hit = scene.intersect_in_medium(mi, self.ray_o, self.ray_d, self.ray_tmax);
         let end = hit.as_ref().map_or(self.ray_tmax, |h| h.t);
-        let (collision, w) = het.sample_flight(self.ray_o, self.ray_d, end, rng);
+        let ray = (self.ray_o.into(), self.ray_d.into());
+        let walk = f32::majorant_walk(het, ray.0, ray.1, (0.0, end));
+        let f = het.delta_tracking(ray.0, ray.1, walk, true, rng);
+        let w = Vec3::from(f.weight);
         self.beta *= w;
         self.d_beta *= w;
         self.d_sigma *= w;
         self.d_g *= w;
-        // d/d scale (`volpath::MediumParams`): −∫σ over the flight, 1/scale at a collision.
-        let chosen = settings.gradient.extinction_medium() == Some(mi);
         let mut flight = Flight::through_vacuum();
-        match collision {
-            Some(c) => {
-                // The albedo there: the render's factor on the volume (1 as loaded) times
-                // the volume's value; the gradient is the factor's, so the vertex weighs
-                // c.albedo beside it.
-                flight.d_beta_before = self.d_beta * albedo * c.albedo;
-                let (a, b) = settings.gradient.vertex_factors(mi, albedo);
-                self.d_beta = (self.d_beta * a + self.beta * b) * c.albedo;
-                self.beta *= albedo * c.albedo;
-                self.d_sigma *= albedo * c.albedo;
-                self.d_g *= albedo * c.albedo;
-                if chosen {
-                    let depth = het.depth_estimate(self.ray_o, self.ray_d, c.t);
-                    self.d_sigma += self.beta * (1.0 / het.scale - depth);
-                }
-                flight.scattered = true;
-                flight.t = c.t;
-            }
-            None => {
-                if chosen {
-                    self.d_sigma -= self.beta * het.depth_estimate(self.ray_o, self.ray_d, end);
-                }
-                flight.si = hit;
-                flight.t = end;
-            }
+        if f.collided {
+            // The albedo there: the render's factor on the volume (1 as loaded) times
+            // the volume's value; the gradient is the factor's, so the vertex weighs
+            // the volume's value beside it.
+            let volume_albedo = Vec3::from(f.albedo);
+            flight.d_beta_before = self.d_beta * albedo * volume_albedo;
+            let (a, b) = settings.gradient.vertex_factors(mi, albedo);
+            self.d_beta = (self.d_beta * a + self.beta * b) * volume_albedo;
+            self.beta *= albedo * volume_albedo;
+            self.d_sigma *= albedo * volume_albedo;
+            self.d_g *= albedo * volume_albedo;
+            flight.scattered = true;
+            flight.t = f.t;
+        } else {
+            flight.si = hit;
+            flight.t = end;
+        }
+        // d/d scale (`volpath::MediumParams`), with β's α at a collision.
+        if settings.gradient.extinction_medium() == Some(mi) {
+            let score = het.flight_scale_score(ray, &f, end, true);
+            self.d_sigma += self.beta * Vec3::from(score);
         }
         flight
     }
@@ -640,8 +638,8 @@ impl<'a> PathState<'a> {
                 let medium = medium_after(info, h.n, d, medium);
                 let ray = ShadowRay { o, d, dist, medium };
                 let through = shadow_transmittance(scene, ray, &mut diff, rng);
-                d_log_tr = through.d_log;
-                through.tr
+                d_log_tr = through.d_log.into();
+                through.tr.into()
             };
             if let Some(ls) = sample_light_at_surface(scene, h, wi, bsdf, u, transmittance) {
                 let w = if ls.delta {

@@ -2,14 +2,15 @@
 //! boundaries, the media between them, each segment exact (homogeneous) or by ratio
 //! tracking (heterogeneous).
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3A;
 
 use super::{medium_after, medium_beyond, AdjointParams};
 use crate::geometry::accel::{Crossing, CrossingList, Crossings};
 use crate::geometry::offset_point;
-use crate::medium::transmittance;
+use crate::medium::Transmitted;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
+use crate::simd::Vector3;
 
 /// Null-boundary crossings a shadow ray may make before it is treated as blocked
 /// (guards against a degenerate scene trapping the ray).
@@ -22,36 +23,6 @@ pub(super) struct ShadowRay {
     pub d: Vec3A,
     pub dist: f32,
     pub medium: Option<u32>,
-}
-
-/// What a shadow ray lets through: its transmittance T per channel, and where the
-/// extinction of one medium is differentiated (`volpath::MediumParams`), ∂ ln T / ∂θ
-/// (−s for each segment of length s in that medium, homogeneous; −∫σ, estimated, in a
-/// heterogeneous one), so that ∂T/∂θ = T · `d_log` needs no division by T.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Transmitted {
-    pub tr: Vec3,
-    pub d_log: Vec3,
-}
-
-impl Transmitted {
-    const BLOCKED: Transmitted = Transmitted {
-        tr: Vec3::ZERO,
-        d_log: Vec3::ZERO,
-    };
-    const CLEAR: Transmitted = Transmitted {
-        tr: Vec3::ONE,
-        d_log: Vec3::ZERO,
-    };
-
-    /// Through this, then `next`.
-    #[inline]
-    fn then(self, next: Transmitted) -> Transmitted {
-        Transmitted {
-            tr: self.tr * next.tr,
-            d_log: self.d_log + next.d_log,
-        }
-    }
 }
 
 /// What a shadow ray's transmittance is differentiated in: forward mode's extinction of
@@ -90,10 +61,10 @@ pub(super) fn shadow_transmittance(
     ray: ShadowRay,
     diff: &mut ShadowDerivative,
     rng: &mut Pcg32,
-) -> Transmitted {
+) -> Transmitted<f32> {
     let mut hits = CrossingList::new();
     match scene.crossings(ray.o, ray.d, ray.dist, &mut hits) {
-        Crossings::Blocked => Transmitted::BLOCKED,
+        Crossings::Blocked => Transmitted::blocked(),
         Crossings::Found => through_crossings(scene, ray, diff, &mut hits, rng),
         Crossings::Unsupported => shadow_transmittance_stepwise(scene, ray, diff, rng),
     }
@@ -110,7 +81,7 @@ pub(super) fn through_crossings(
     diff: &mut ShadowDerivative,
     hits: &mut [Crossing],
     rng: &mut Pcg32,
-) -> Transmitted {
+) -> Transmitted<f32> {
     let ShadowRay {
         o,
         d,
@@ -118,7 +89,7 @@ pub(super) fn through_crossings(
         mut medium,
     } = ray;
     hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t));
-    let mut tr = Transmitted::CLEAR;
+    let mut tr = Transmitted::clear();
     let mut start = 0.0f32;
     for h in hits.iter() {
         if let Some(m) = medium {
@@ -135,8 +106,9 @@ pub(super) fn through_crossings(
     tr
 }
 
-/// The transmittance of a segment `(o, d, len)` in medium `m`: Beer–Lambert in a
-/// homogeneous medium, ratio tracking (an unbiased estimate) in a heterogeneous one.
+/// The transmittance of a segment `(o, d, len)` in medium `m`
+/// (`Medium::segment_transmittance`), or where `m`'s voxels are differentiated in
+/// reverse mode, `medium::differential`'s ratio tracking, which records where it looked.
 #[inline]
 pub(super) fn segment_transmittance(
     scene: &Scene,
@@ -144,41 +116,24 @@ pub(super) fn segment_transmittance(
     (o, d, len): (Vec3A, Vec3A, f32),
     diff: &mut ShadowDerivative,
     rng: &mut Pcg32,
-) -> Transmitted {
+) -> Transmitted<f32> {
     let med = &scene.media[m as usize];
-    let chosen = diff.extinction == Some(m);
-    match &med.heterogeneous {
-        None => Transmitted {
-            tr: transmittance(med.sigma_t, len),
-            d_log: if chosen {
-                Vec3::splat(-len)
-            } else {
-                Vec3::ZERO
-            },
-        },
-        Some(h) => match diff.adjoint {
-            Some(a) if a.medium == m => {
-                let record = &mut diff.record;
-                let tr = a.tracking.transmittance(h, o, d, len, rng, |p, sigma_n| {
-                    if let Some(r) = record.as_deref_mut() {
-                        r.push((p, -h.scale / sigma_n));
-                    }
-                });
-                Transmitted {
-                    tr,
-                    d_log: Vec3::ZERO,
+    if let (Some(h), Some(a)) = (med.heterogeneous.as_deref(), diff.adjoint) {
+        if a.medium == m {
+            let record = &mut diff.record;
+            let tr = a.tracking.ratio_tracking(h, o, d, len, rng, |p, sigma_n| {
+                if let Some(r) = record.as_deref_mut() {
+                    r.push((p, -h.scale / sigma_n));
                 }
-            }
-            _ => Transmitted {
-                tr: h.transmittance(o, d, len, rng),
-                d_log: if chosen {
-                    -h.depth_estimate(o, d, len)
-                } else {
-                    Vec3::ZERO
-                },
-            },
-        },
+            });
+            return Transmitted {
+                tr: tr.into(),
+                d_log: Vector3::all(0.0),
+            };
+        }
     }
+    let chosen = diff.extinction == Some(m);
+    med.segment_transmittance((o.into(), d.into()), (0.0, len), true, chosen, rng)
 }
 
 /// [`shadow_transmittance`] by one closest-hit cast per crossing.
@@ -187,14 +142,14 @@ pub(super) fn shadow_transmittance_stepwise(
     ray: ShadowRay,
     diff: &mut ShadowDerivative,
     rng: &mut Pcg32,
-) -> Transmitted {
+) -> Transmitted<f32> {
     let ShadowRay {
         mut o,
         d,
         mut dist,
         mut medium,
     } = ray;
-    let mut tr = Transmitted::CLEAR;
+    let mut tr = Transmitted::clear();
     for _ in 0..MAX_SHADOW_CROSSINGS {
         if dist <= 0.0 {
             return tr;
@@ -208,14 +163,15 @@ pub(super) fn shadow_transmittance_stepwise(
         let info = &scene.shapes[h.shape as usize];
         // Through a null or thin-dielectric surface, by what it lets through; any
         // other surface blocks.
-        tr.tr *= scene.bsdfs[info.bsdf as usize].null_transmission(h.sh_frame.n.dot(d), h.uv);
-        if tr.tr == Vec3::ZERO {
-            return Transmitted::BLOCKED;
+        let passed = scene.bsdfs[info.bsdf as usize].null_transmission(h.sh_frame.n.dot(d), h.uv);
+        tr.tr = tr.tr.mul(passed.into());
+        if tr.tr == Vector3::all(0.0) {
+            return Transmitted::blocked();
         }
         medium = medium_after(info, h.n, d, medium);
         let o2 = offset_point(h.p, h.n, d, scene.offset_scale);
         dist -= (o2 - o).length();
         o = o2;
     }
-    Transmitted::BLOCKED
+    Transmitted::blocked()
 }

@@ -201,6 +201,7 @@ fn crossings_in_one_traversal_give_the_exact_transmittance() {
                 &mut Pcg32::new(1, 1),
             )
             .tr;
+            let tr = Vec3::from(tr);
             let want = exact(o, d, dist, medium, cubes);
             assert!(
                 (tr - want).abs().max_element() <= 1e-4 * want.max_element() + 1e-6,
@@ -249,7 +250,7 @@ fn a_crossing_found_twice_on_a_shared_edge_counts_once() {
                     &mut ShadowDerivative::forward(Some(0)),
                     &mut Pcg32::new(1, 1),
                 );
-                let tr = through.tr;
+                let tr = Vec3::from(through.tr);
                 // ∂ ln T / ∂σ_t: minus the length in the medium.
                 assert!(
                     (through.d_log.x + depth).abs() < 1e-4,

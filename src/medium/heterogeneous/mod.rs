@@ -59,10 +59,11 @@ pub struct HeterogeneousMedium {
     pub bounds: Option<LookupBounds>,
 }
 
-/// Where free flights ended, per path: at a real collision (`collided`, at `t`, the
-/// albedo volume's value there) or past their segments (`t` is then 0 and the albedo
-/// 1), and the weight each contributes (`HeterogeneousMedium::sample_flight`).
-pub struct Flight<F: Float> {
+/// Where free flights by delta tracking ended, per path: at a real collision
+/// (`collided`, at `t`, the albedo volume's value there) or past their segments (`t`
+/// is then 0 and the albedo 1), and the weight each contributes
+/// (`HeterogeneousMedium::delta_tracking`).
+pub struct FlightEnd<F: Float> {
     pub collided: F::Mask,
     pub t: F,
     pub weight: Vector3<F>,
@@ -70,6 +71,7 @@ pub struct Flight<F: Float> {
 }
 
 /// What a free flight found: a real collision, or none before `tmax`.
+#[cfg(test)]
 pub struct Collision {
     pub t: f32,
     /// The albedo there (before the render's global factor on it).
@@ -186,10 +188,9 @@ impl HeterogeneousMedium {
         self.sigma_t.eval(p) * self.scale
     }
 
-    /// Delta tracking from `o` along unit `d` up to `tmax`: the first real collision,
-    /// if any, and the path weight the flight contributes (product of the null
-    /// collisions' σ_n / mean(σ_n), times σ_t / mean(σ_t) at the real one; all ones for
-    /// grey σ_t). The albedo is left to the caller.
+    /// Delta tracking from `o` along unit `d` up to `tmax` on one path, for tests: the
+    /// first real collision, if any, and the path weight the flight contributes.
+    #[cfg(test)]
     pub fn sample_flight(
         &self,
         o: Vec3A,
@@ -197,7 +198,7 @@ impl HeterogeneousMedium {
         tmax: f32,
         rng: &mut Pcg32,
     ) -> (Option<Collision>, Vec3) {
-        let segments = self.majorant_segments(o, d, tmax);
+        let segments = self.majorant_segments(o, d, (0.0, tmax));
         let f = self.delta_tracking(o.into(), d.into(), segments, true, rng);
         let collision = f.collided.then(|| Collision {
             t: f.t,
@@ -207,7 +208,10 @@ impl HeterogeneousMedium {
     }
 
     /// Delta tracking along `segments` of the rays from `o` along unit `d`, for the
-    /// paths of `mask` ([`HeterogeneousMedium::sample_flight`] over any number type).
+    /// paths of `mask`: where each flight ends, its first real collision if any, and the
+    /// path weight it contributes (product of the null collisions' σ_n / mean(σ_n),
+    /// times σ_t / mean(σ_t) at the real one; all ones for grey σ_t). The render's
+    /// albedo factor is left to the caller.
     #[inline(always)]
     pub fn delta_tracking<F: Gather, S: Sampler<F> + ?Sized>(
         &self,
@@ -216,7 +220,7 @@ impl HeterogeneousMedium {
         segments: impl MajorantWalk<F>,
         mask: F::Mask,
         sampler: &mut S,
-    ) -> Flight<F> {
+    ) -> FlightEnd<F> {
         let (o, d) = (F::point(o), F::point(d));
         let mut weight = Vector3::all(F::one());
         let mut at = F::zero();
@@ -274,7 +278,7 @@ impl HeterogeneousMedium {
             ),
             false => ones,
         };
-        Flight {
+        FlightEnd {
             collided,
             t: at,
             weight,
@@ -301,9 +305,10 @@ impl HeterogeneousMedium {
         Some((mask & real, mask & null))
     }
 
-    /// Ratio tracking: an unbiased estimate of `exp(−∫₀^dist σ_t)` from `o` along `d`.
+    /// Ratio tracking: an unbiased estimate of `exp(−∫₀^dist σ_t)` from `o` along `d`,
+    /// on one path.
     pub fn transmittance(&self, o: Vec3A, d: Vec3A, dist: f32, rng: &mut Pcg32) -> Vec3 {
-        let segments = self.majorant_segments(o, d, dist);
+        let segments = self.majorant_segments(o, d, (0.0, dist));
         self.ratio_tracking(o.into(), d.into(), segments, true, rng)
             .into()
     }
@@ -360,11 +365,17 @@ impl HeterogeneousMedium {
         tr
     }
 
-    /// The majorant segments of `o + t d` within the span up to `tmax` (pbrt-v4's
+    /// The majorant segments of `o + t d` within the span in [tmin, tmax] (pbrt-v4's
     /// `SampleRay`): the cells of the local majorants where there are some, else the
     /// span at the global one; none where the ray misses the medium or σ̄ = 0.
-    pub fn majorant_segments(&self, o: Vec3A, d: Vec3A, tmax: f32) -> MajorantSegments<'_> {
-        let span = self.span(o, d, tmax).filter(|_| self.majorant > 0.0);
+    pub fn majorant_segments(
+        &self,
+        o: Vec3A,
+        d: Vec3A,
+        (tmin, tmax): (f32, f32),
+    ) -> MajorantSegments<'_> {
+        let (t0, t1, some) = self.span_at(o.into(), d.into(), (tmin, tmax));
+        let span = (some && self.majorant > 0.0).then_some((t0, t1));
         match (span, &self.majorants) {
             (Some(span), Some(grid)) => {
                 let (ol, dl) = majorant::to_local(&self.sigma_t, o, d);

@@ -163,7 +163,7 @@ fn lanes_flight(
     tmax: L,
     mask: L,
     rngs: &mut [Pcg32],
-) -> Flight<L> {
+) -> FlightEnd<L> {
     let walk = h.global_segment(o, d, (L::ZERO, tmax));
     h.delta_tracking(o, d, walk, mask, rngs)
 }

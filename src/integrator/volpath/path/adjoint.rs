@@ -181,7 +181,7 @@ impl PathState<'_> {
         let null_terms = a.sigma_t && a.defect != Some(AdjointDefect::Transmittance);
         let ghosts = a.defect != Some(AdjointDefect::Ghosts);
         let (o, d) = (self.ray_o, self.ray_d);
-        let real = a.tracking.sample_flight(het, o, d, end, rng, |c, real| {
+        let real = a.tracking.delta_tracking(het, o, d, end, rng, |c, real| {
             let (Some(after), Some(adj)) = (after, adj.as_deref_mut()) else {
                 return;
             };
