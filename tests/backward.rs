@@ -128,7 +128,7 @@ fn forward_derivatives(seeds: u64, spp: u32) -> [Vec<f64>; 2] {
         let s = scene(spp, 1000 + seed, None);
         let (gradient, mi) = medium_gradient(&s, Some("fog"), &params).unwrap();
         let opts = RenderOptions {
-            gradient,
+            estimand: gradient,
             ..Default::default()
         };
         let r = mediareg::integrator::render(&s, &s.shot, &opts);

@@ -18,7 +18,7 @@ mod common;
 use std::path::Path;
 
 use common::{load_seeded, root};
-use mediareg::integrator::volpath::Gradient;
+use mediareg::integrator::volpath::Estimand;
 use mediareg::integrator::{derivative_images, medium_gradient, MediumParam, RenderOptions};
 use serde_json::Value;
 use statrs::distribution::{ContinuousCDF, StudentsT};
@@ -136,7 +136,7 @@ fn region_means(img: &mediareg::image::Image) -> Vec<f64> {
 
 /// mediareg's derivatives of scene `name` (its reference's defines), `seeds` renders
 /// of `spp` each, with the estimator `tweak` makes of the asked-for one.
-fn compare(name: &str, seeds: u64, spp: u32, tweak: impl Fn(Gradient) -> Gradient) -> Compared {
+fn compare(name: &str, seeds: u64, spp: u32, tweak: impl Fn(Estimand) -> Estimand) -> Compared {
     let text = std::fs::read_to_string(root().join(format!("reference/derivatives/{name}.json")))
         .expect("reference/derivatives: run scripts/derivative_references");
     let r: Value = serde_json::from_str(&text).unwrap();
@@ -161,7 +161,7 @@ fn compare(name: &str, seeds: u64, spp: u32, tweak: impl Fn(Gradient) -> Gradien
         let scene = load_seeded(Path::new(&path), &defines, spp, 1000 + seed);
         let (gradient, mi) = medium_gradient(&scene, None, &params).unwrap();
         let opts = RenderOptions {
-            gradient: tweak(gradient),
+            estimand: tweak(gradient),
             ..Default::default()
         };
         let rendered = mediareg::integrator::render(&scene, &scene.shot, &opts);
@@ -247,7 +247,7 @@ fn worst(name: &str, compared: &Compared, factor: f64) -> f64 {
     worst
 }
 
-fn same(g: Gradient) -> Gradient {
+fn same(g: Estimand) -> Estimand {
     g
 }
 
@@ -286,10 +286,10 @@ fn cube_derivatives_match_mitsuba() {
 
 #[test]
 fn cube_power_without_shadow_term() {
-    let wrong = |g: Gradient| match g {
-        Gradient::Medium { medium, mut params } => {
+    let wrong = |g: Estimand| match g {
+        Estimand::MediumDerivatives { medium, mut params } => {
             params.without_shadow_term = true;
-            Gradient::Medium { medium, params }
+            Estimand::MediumDerivatives { medium, params }
         }
         g => g,
     };
@@ -436,7 +436,7 @@ fn hard_cases_stay_finite() {
             let s = load_seeded(&root().join(scene), &defines, 64, 500 + seed);
             let (gradient, mi) = medium_gradient(&s, None, &params).unwrap();
             let opts = RenderOptions {
-                gradient,
+                estimand: gradient,
                 ..Default::default()
             };
             let r = mediareg::integrator::render(&s, &s.shot, &opts);

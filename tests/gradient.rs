@@ -19,7 +19,7 @@ use common::{
     layout, load_seeded, reference, render_gradient_chunks, render_pixels, root, ALPHA, FALSE_ALARM,
 };
 use mediareg::image::stats::{compare, Comparison, Estimate};
-use mediareg::integrator::volpath::Gradient;
+use mediareg::integrator::volpath::Estimand;
 use mediareg::integrator::RenderOptions;
 
 const CHUNKS: usize = 16;
@@ -35,7 +35,7 @@ fn render(
     params: &[(&str, &str)],
     spp: u32,
     seed: u64,
-    gradient: Gradient,
+    gradient: Estimand,
 ) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
     render_scene(&cube(), params, spp, seed, gradient)
 }
@@ -45,13 +45,13 @@ fn render_scene(
     params: &[(&str, &str)],
     spp: u32,
     seed: u64,
-    gradient: Gradient,
+    gradient: Estimand,
 ) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
     let s = load_seeded(scene, params, spp, seed);
     render_pixels(
         &s,
         RenderOptions {
-            gradient,
+            estimand: gradient,
             ..Default::default()
         },
     )
@@ -78,9 +78,9 @@ fn check_finite_differences(
         params.extend(extra);
         render_scene(scene, &params, 16, 3, gradient)
     };
-    let (plus, _) = render_at(h, Gradient::None);
-    let (minus, _) = render_at(-h, Gradient::None);
-    let (_, grad) = render_at(0.0, Gradient::Albedo(0));
+    let (plus, _) = render_at(h, Estimand::RadianceOnly);
+    let (minus, _) = render_at(-h, Estimand::RadianceOnly);
+    let (_, grad) = render_at(0.0, Estimand::AlbedoDerivative(0));
     let grad = grad.unwrap();
     let mut worst = 0.0f64;
     let mut nonzero = 0;
@@ -131,7 +131,7 @@ fn gradient_matches_finite_differences_in_a_chromatic_medium_with_emitters_insid
     );
 }
 
-fn check(gradient: Gradient, scale: f32, seed: u64) -> Comparison {
+fn check(gradient: Estimand, scale: f32, seed: u64) -> Comparison {
     let r = reference("medium_cube_dalbedo", &cube());
     let mut chunks = render_gradient_chunks(&cube(), &PARAMS, CHUNKS, SPP, seed, gradient);
     for img in &mut chunks {
@@ -148,19 +148,19 @@ fn check(gradient: Gradient, scale: f32, seed: u64) -> Comparison {
 
 #[test]
 fn gradient_matches_mitsuba_derivative() {
-    let c = check(Gradient::Albedo(0), 1.0, 31);
+    let c = check(Estimand::AlbedoDerivative(0), 1.0, 31);
     assert!(c.passed, "{c}");
 }
 
 #[test]
 fn comparison_detects_gradient_five_percent_too_large() {
-    let c = check(Gradient::Albedo(0), 1.05, 32);
+    let c = check(Estimand::AlbedoDerivative(0), 1.05, 32);
     assert!(!c.passed, "a gradient scaled by 1.05 went undetected: {c}");
 }
 
 #[test]
 fn comparison_detects_gradient_ignoring_nee_vertices() {
-    let c = check(Gradient::AlbedoIgnoringNeeVertex(0), 1.0, 33);
+    let c = check(Estimand::AlbedoDerivativeIgnoringNeeVertex(0), 1.0, 33);
     assert!(
         !c.passed,
         "a gradient that ignores NEE vertices went undetected: {c}"
@@ -172,8 +172,8 @@ fn comparison_detects_gradient_ignoring_nee_vertices() {
 #[test]
 fn gradient_does_not_change_the_radiance() {
     let p = [("max_depth", "12"), ("rr_depth", "100")];
-    let (plain, _) = render(&p, 8, 5, Gradient::None);
-    let (with, _) = render(&p, 8, 5, Gradient::Albedo(0));
+    let (plain, _) = render(&p, 8, 5, Estimand::RadianceOnly);
+    let (with, _) = render(&p, 8, 5, Estimand::AlbedoDerivative(0));
     assert!(plain
         .iter()
         .zip(&with)
@@ -223,7 +223,7 @@ fn spatial_denoising_lowers_the_gradient_error() {
         &s.shot,
         &RenderOptions {
             show_progress: false,
-            gradient: Gradient::Albedo(0),
+            estimand: Estimand::AlbedoDerivative(0),
             ..Default::default()
         },
     );
@@ -255,7 +255,7 @@ fn spatial_denoising_lowers_the_gradient_error() {
     );
 }
 
-/// R(α_t) from paths rendered at α_s: each render's R_s + D (`Gradient::Difference`,
+/// R(α_t) from paths rendered at α_s: each render's R_s + D (`Estimand::AlbedoDifference`,
 /// D = f ((α_t / α_s)^k − 1) per path) at α_s = 0.9 α_t.
 fn reweighted_chunks(target: f32, seed: u64) -> Vec<Vec<[f32; 3]>> {
     let scene = root().join("mitsuba_scenes/medium_cube.xml");
@@ -263,7 +263,7 @@ fn reweighted_chunks(target: f32, seed: u64) -> Vec<Vec<[f32; 3]>> {
         .map(|i| {
             let s = load_seeded(&scene, &[("albedo", "0.855")], 128, seed + i);
             let opts = RenderOptions {
-                gradient: Gradient::Difference {
+                estimand: Estimand::AlbedoDifference {
                     medium: 0,
                     target: glam::Vec3::splat(target),
                 },

@@ -29,7 +29,7 @@
 mod common;
 
 use common::scene_text::{tmp_dir, write};
-use mediareg::integrator::volpath::Gradient;
+use mediareg::integrator::volpath::Estimand;
 use mediareg::integrator::{render, RenderOptions};
 use mediareg::scene::Scene;
 use mediareg::BuildOverrides;
@@ -238,10 +238,10 @@ fn run_cell(c: &Cell, reference: Option<&[f64]>, failures: &mut Vec<String>) -> 
     let tag = c.tag();
     // Independent seeds per cell (the scaled cells are compared with the unscaled one).
     let scene = c.build(seed_hash(&format!("{c:?}")));
-    let gradient = if c.albedo == 0.0 || c.albedo == 1.0 {
-        Gradient::Albedo(0)
+    let estimand = if c.albedo == 0.0 || c.albedo == 1.0 {
+        Estimand::AlbedoDerivative(0)
     } else {
-        Gradient::None
+        Estimand::RadianceOnly
     };
     let start = std::time::Instant::now();
     let r = render(
@@ -249,7 +249,7 @@ fn run_cell(c: &Cell, reference: Option<&[f64]>, failures: &mut Vec<String>) -> 
         &scene.shot,
         &RenderOptions {
             show_progress: false,
-            gradient,
+            estimand,
             ..Default::default()
         },
     );

@@ -8,7 +8,7 @@ mod common;
 
 use common::scene_text::{load_or_build_error, load_text, tmp_dir, write};
 use common::{check_against_reference, load_seeded, render_pixels, root};
-use mediareg::integrator::volpath::Gradient;
+use mediareg::integrator::volpath::Estimand;
 use mediareg::integrator::RenderOptions;
 use mediareg::medium::grid::write_vol;
 
@@ -43,7 +43,7 @@ fn cloud_power_g_negated() {
 
 /// The render of the cloud with the albedo volume scaled by `factor`, and the gradient
 /// with respect to that factor when asked.
-fn render_cloud(factor: f32, gradient: Gradient) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
+fn render_cloud(factor: f32, gradient: Estimand) -> (Vec<[f32; 3]>, Option<Vec<[f32; 3]>>) {
     // Russian roulette off (rr_depth ≥ max_depth): renders at two factors follow the
     // same paths, as the tracking's decisions depend on σ_t only.
     let params = [("albedo", "0.9"), ("max_depth", "12"), ("rr_depth", "100")];
@@ -51,7 +51,7 @@ fn render_cloud(factor: f32, gradient: Gradient) -> (Vec<[f32; 3]>, Option<Vec<[
     render_pixels(
         &s,
         RenderOptions {
-            gradient,
+            estimand: gradient,
             albedo: Some(vec![glam::Vec3::splat(factor)]),
             ..Default::default()
         },
@@ -64,7 +64,7 @@ fn render_cloud(factor: f32, gradient: Gradient) -> (Vec<[f32; 3]>, Option<Vec<[
 /// truncation, at most (K−1)(K−2)/6 · h² relative, plus float rounding.
 #[test]
 fn cloud_albedo_gradient_matches_finite_differences() {
-    let worst = finite_difference_excess(Gradient::Albedo(0));
+    let worst = finite_difference_excess(Estimand::AlbedoDerivative(0));
     assert!(worst <= 1.0, "|FD − G| reaches {worst:.2}× the tolerance");
 }
 
@@ -72,7 +72,7 @@ fn cloud_albedo_gradient_matches_finite_differences() {
 /// the same check.
 #[test]
 fn cloud_albedo_gradient_power_missing_nee_vertex() {
-    let worst = finite_difference_excess(Gradient::AlbedoIgnoringNeeVertex(0));
+    let worst = finite_difference_excess(Estimand::AlbedoDerivativeIgnoringNeeVertex(0));
     assert!(
         worst > 1.0,
         "a wrong gradient passed (|FD − G| ≤ {worst:.2}× the tolerance)"
@@ -80,10 +80,10 @@ fn cloud_albedo_gradient_power_missing_nee_vertex() {
 }
 
 /// The largest |FD − G| / tolerance over the film, for the gradient `gradient`.
-fn finite_difference_excess(gradient: Gradient) -> f64 {
+fn finite_difference_excess(gradient: Estimand) -> f64 {
     let h = 0.01f32;
-    let (plus, _) = render_cloud(1.0 + h, Gradient::None);
-    let (minus, _) = render_cloud(1.0 - h, Gradient::None);
+    let (plus, _) = render_cloud(1.0 + h, Estimand::RadianceOnly);
+    let (minus, _) = render_cloud(1.0 - h, Estimand::RadianceOnly);
     let (_, grad) = render_cloud(1.0, gradient);
     let grad = grad.unwrap();
     let trunc = 11.0 * 10.0 / 6.0 * (h * h) as f64 * 1.01;

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use mediareg::denoise::AuxUse;
-use mediareg::integrator::{self, volpath::Gradient, GradientError, MediumParam, RenderOptions};
+use mediareg::integrator::{self, volpath::Estimand, GradientError, MediumParam, RenderOptions};
 use mediareg::scene::MediumChoiceError;
 
 use crate::images::to_numpy;
@@ -72,8 +72,8 @@ pub fn render<'py>(
             MediumParam::parse_list(list).map_err(|e| bad_arg(format!("gradient={list:?}: {e}")))?
         }
     };
-    let (gradient, medium_index) = if params.is_empty() {
-        (Gradient::None, 0)
+    let (estimand, medium_index) = if params.is_empty() {
+        (Estimand::RadianceOnly, 0)
     } else {
         integrator::medium_gradient(&data, medium, &params).map_err(|e| {
             let hint = match &e {
@@ -108,7 +108,7 @@ pub fn render<'py>(
     let shot = data.shot.with(spp.unwrap_or(data.shot.spp), seed);
     let cancel = Arc::new(AtomicBool::new(false));
     let opts = RenderOptions {
-        gradient,
+        estimand,
         seen_emission: denoise.is_some(),
         cancel: Some(Arc::clone(&cancel)),
         ..Default::default()

@@ -1,6 +1,6 @@
 //! `mediareg fit`: a medium's parameters from images. Each iteration renders the
 //! image and its derivatives in the parameters in the same paths
-//! (`integrator::volpath::MediumParams`), one render per target, and takes a
+//! (`integrator::volpath::Differentiated`), one render per target, and takes a
 //! Levenberg–Marquardt step on the squared error:
 //!
 //!   (JᵀJ + λ diag JᵀJ) δ = −Jᵀ r,
@@ -432,11 +432,11 @@ fn render_with_derivatives(
     mi: u32,
     seed: u64,
 ) -> (Rendered, std::collections::HashMap<MediumParam, Image>) {
-    let (gradient, _) = medium_gradient(&t.scene, settings.medium.as_deref(), &settings.params)
+    let (estimand, _) = medium_gradient(&t.scene, settings.medium.as_deref(), &settings.params)
         .expect("checked before the fit");
     let shot = t.scene.shot.with(settings.spp, seed);
     let opts = RenderOptions {
-        gradient,
+        estimand,
         ..Default::default()
     };
     let rendered = render(&t.scene, &shot, &opts);

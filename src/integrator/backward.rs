@@ -17,7 +17,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use super::volpath::{
-    self, AdjointDefect, AdjointParams, AdjointPath, Gradient, GridGradients, PathSettings,
+    self, AdjointDefect, AdjointParams, AdjointPath, Estimand, GridGradients, PathSettings,
 };
 use crate::image::Image;
 use crate::medium::differential::DifferentialTracking;
@@ -177,7 +177,7 @@ pub fn backward(
     let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
     let settings = PathSettings {
         albedo: &albedo,
-        gradient: Gradient::Adjoint(params),
+        estimand: Estimand::Adjoint(params),
     };
     let per_weight = adjoint_over_weights(shot, adjoint);
     let start = std::time::Instant::now();

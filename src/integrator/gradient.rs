@@ -4,7 +4,7 @@
 //! and the derivative images named as the scene file names the parameters.
 
 use super::render::Rendered;
-use super::volpath::{Gradient, MediumParams};
+use super::volpath::{Differentiated, Estimand};
 use crate::image::Image;
 use crate::medium::Phase;
 use crate::scene::{IntegratorKind, MediumChoiceError, Scene};
@@ -96,18 +96,18 @@ impl std::fmt::Display for GradientError {
 impl std::error::Error for GradientError {}
 
 /// d(radiance)/d(albedo) of the medium with XML id `medium` (or the scene's only one).
-pub fn albedo_gradient(scene: &Scene, medium: Option<&str>) -> Result<Gradient, GradientError> {
+pub fn albedo_gradient(scene: &Scene, medium: Option<&str>) -> Result<Estimand, GradientError> {
     medium_gradient(scene, medium, &[MediumParam::Albedo]).map(|(g, _)| g)
 }
 
 /// The derivatives in `params` of the medium with XML id `medium` (or the scene's only
-/// one), and its index. The albedo alone is `Gradient::Albedo`. The lane path
+/// one), and its index. The albedo alone is `Estimand::AlbedoDerivative`. The lane path
 /// (`integrator::packet`) renders either, as the scalar one does.
 pub fn medium_gradient(
     scene: &Scene,
     medium: Option<&str>,
     params: &[MediumParam],
-) -> Result<(Gradient, u32), GradientError> {
+) -> Result<(Estimand, u32), GradientError> {
     if scene.integrator.kind != IntegratorKind::Volpath {
         return Err(GradientError::NeedsVolpath);
     }
@@ -131,15 +131,15 @@ pub fn medium_gradient(
         }
     }
     if params == [MediumParam::Albedo] {
-        return Ok((Gradient::Albedo(mi), mi));
+        return Ok((Estimand::AlbedoDerivative(mi), mi));
     }
-    let params = MediumParams {
+    let params = Differentiated {
         albedo: params.contains(&MediumParam::Albedo),
         extinction: params.contains(&MediumParam::SigmaT) || params.contains(&MediumParam::Scale),
         g: params.contains(&MediumParam::G),
         without_shadow_term: false,
     };
-    Ok((Gradient::Medium { medium: mi, params }, mi))
+    Ok((Estimand::MediumDerivatives { medium: mi, params }, mi))
 }
 
 /// The derivative images of `rendered` in `params` of medium `mi`, in the order asked:

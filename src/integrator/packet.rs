@@ -20,7 +20,7 @@
 //! is left to BSDF and phase sampling under volpath, so a path that escapes sees it
 //! with weight 1.
 //!
-//! Beside the radiance it estimates the derivatives volpath does (`volpath::Gradient`):
+//! Beside the radiance it estimates the derivatives volpath does (`volpath::Estimand`):
 //! the albedo's (or the difference) in dβ, and one medium's extinction's and g's in
 //! `derivatives`, each updated wherever β is, and only where the render asks for it: a
 //! render that asks for none runs the paths' instance without them (`PacketPaths<false>`),

@@ -52,8 +52,8 @@ pub struct RenderStats {
 #[derive(Clone, Debug, Default)]
 pub struct RenderOptions {
     pub show_progress: bool,
-    /// A derivative image to estimate in the same paths (volpath only).
-    pub gradient: volpath::Gradient,
+    /// What to estimate beside the radiance in the same paths (volpath only).
+    pub estimand: volpath::Estimand,
     /// Per medium, the albedo to render with instead of the scene's (the paper's method
     /// renders at a lower albedo); None renders the scene's.
     pub albedo: Option<Vec<Vec3>>,
@@ -188,7 +188,7 @@ pub struct Rendered {
     pub image: Image,
     pub gradient: Option<Image>,
     /// d/dσ_t (d/d scale in a heterogeneous medium) and d/dg of the medium asked for
-    /// (`volpath::MediumParams`), unscaled: `integrator::derivatives` names them.
+    /// (`volpath::Differentiated`), unscaled: `integrator::derivatives` names them.
     pub d_sigma: Option<Image>,
     pub d_g: Option<Image>,
     pub seen_emission: Option<Image>,
@@ -204,7 +204,7 @@ pub struct Rendered {
 /// filter weights.
 struct Blocks {
     radiance: ImageBlock,
-    second: Option<ImageBlock>,
+    d_albedo: Option<ImageBlock>,
     d_sigma: Option<ImageBlock>,
     d_g: Option<ImageBlock>,
     seen: Option<ImageBlock>,
@@ -214,7 +214,7 @@ struct Blocks {
 /// Which optional images a render accumulates.
 #[derive(Clone, Copy)]
 struct Wanted {
-    second: bool,
+    d_albedo: bool,
     d_sigma: bool,
     d_g: bool,
     seen: bool,
@@ -226,7 +226,7 @@ impl Blocks {
         let b = || ImageBlock::new(offset, size, border);
         Blocks {
             radiance: b(),
-            second: wanted.second.then(b),
+            d_albedo: wanted.d_albedo.then(b),
             d_sigma: wanted.d_sigma.then(b),
             d_g: wanted.d_g.then(b),
             seen: wanted.seen.then(b),
@@ -242,7 +242,7 @@ impl Blocks {
         self.radiance.put(p, s.radiance, filter);
         let alpha = Vec3::splat(s.valid as u8 as f32);
         for (b, v) in [
-            (&mut self.second, s.second),
+            (&mut self.d_albedo, s.d_albedo),
             (&mut self.d_sigma, s.d_sigma),
             (&mut self.d_g, s.d_g),
             (&mut self.seen, s.seen_emission),
@@ -259,7 +259,7 @@ impl Blocks {
     fn accumulate_into(&self, target: &mut Blocks) {
         self.radiance.accumulate_into(&mut target.radiance);
         for (from, to) in [
-            (&self.second, &mut target.second),
+            (&self.d_albedo, &mut target.d_albedo),
             (&self.d_sigma, &mut target.d_sigma),
             (&self.d_g, &mut target.d_g),
             (&self.seen, &mut target.seen),
@@ -273,15 +273,15 @@ impl Blocks {
 }
 
 /// Renders `scene` through `shot` (Mitsuba's `render(scene, sensor, seed, spp)`):
-/// radiance and, with `opts.gradient`, its derivative, each sample splatted into both
+/// radiance and, with `opts.estimand`, its derivative, each sample splatted into both
 /// images with the same filter weight.
 pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     let show_progress = opts.show_progress;
-    let gradient = opts.gradient;
+    let estimand = opts.estimand;
     let wanted = Wanted {
-        second: gradient.has_second(),
-        d_sigma: gradient.extinction_medium().is_some(),
-        d_g: gradient.g_medium().is_some(),
+        d_albedo: estimand.has_d_albedo(),
+        d_sigma: estimand.extinction_medium().is_some(),
+        d_g: estimand.g_medium().is_some(),
         seen: opts.seen_emission,
         alpha: shot.film.pixel_format.has_alpha(),
     };
@@ -294,7 +294,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     };
     let settings = PathSettings {
         albedo: &albedo,
-        gradient,
+        estimand,
     };
     let packets = packet_scene(scene, shot, opts).ok();
     let packet_settings = PacketSettings::new(&settings);
@@ -365,7 +365,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                 let mut invalid = 0u64;
                 let mut splat = |pos: Vec2, mut s: PathSample| {
                     if !(s.radiance.is_finite()
-                        && s.second.is_finite()
+                        && s.d_albedo.is_finite()
                         && s.d_sigma.is_finite()
                         && s.d_g.is_finite()
                         && s.seen_emission.is_finite())
@@ -448,7 +448,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
     }
     Rendered {
         image,
-        gradient: full.second.as_ref().map(as_image),
+        gradient: full.d_albedo.as_ref().map(as_image),
         d_sigma: full.d_sigma.as_ref().map(as_image),
         d_g: full.d_g.as_ref().map(as_image),
         seen_emission,

@@ -97,8 +97,8 @@ struct MediumLight {
 
 /// Emitter sampling from the point `p` in `medium`, light leaving it against `d_in`,
 /// MIS-weighted (power heuristic) against phase sampling; None when nothing arrives.
-/// `free` is a distance `p` is known to lie from every surface (the clearance there,
-/// or 0 if none is known), for the shadow ray's roulette; `diff` what its transmittance
+/// `clearance` is a distance `p` is known to lie from every surface (0 if none is
+/// known), for the shadow ray's roulette; `diff` what its transmittance
 /// is differentiated in.
 #[inline]
 fn medium_emitter_sample(
@@ -106,7 +106,7 @@ fn medium_emitter_sample(
     medium: u32,
     p: Vec3A,
     d_in: Vec3A,
-    free: f32,
+    clearance: f32,
     diff: &mut ShadowDerivative,
     rng: &mut Pcg32,
 ) -> Option<MediumLight> {
@@ -132,8 +132,8 @@ fn medium_emitter_sample(
         None => m.sigma_t.min_element(),
         Some(_) => 0.0,
     };
-    let q = if sigma_min > 0.0 && free > 0.0 {
-        (-sigma_min * dist.min(free)).exp()
+    let q = if sigma_min > 0.0 && clearance > 0.0 {
+        (-sigma_min * dist.min(clearance)).exp()
     } else {
         1.0
     };
@@ -202,28 +202,28 @@ fn emission_seen(
     emission_met(scene, ei, (p_end, n_end, ray_d), (last.p, last.pdf), full)
 }
 
-/// Which derivative to estimate beside the radiance.
+/// What a render estimates beside the radiance: a derivative, a difference, or nothing.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub enum Gradient {
+pub enum Estimand {
     #[default]
-    None,
+    RadianceOnly,
     /// d(radiance_c)/d(albedo_c) of this medium.
-    Albedo(u32),
+    AlbedoDerivative(u32),
     /// A deliberately wrong variant for the power tests: NEE contributions do not count
     /// the vertex they are made from (k − 1 instead of k).
     #[doc(hidden)]
-    AlbedoIgnoringNeeVertex(u32),
+    AlbedoDerivativeIgnoringNeeVertex(u32),
     /// R(α_t) − R(α) of this medium, α the albedo rendered with and α_t `target`, in the
     /// same paths: each path's contribution f carries α^k for its k scattering vertices
     /// in the medium and its sampling does not depend on α, so f · ((α_t / α)^k − 1) is
     /// an unbiased sample of the difference (Eq. 6–8 integrated from α to α_t instead of
     /// differentiated; Russian roulette detached as for the derivative, its q from the
     /// target's weight β_t, the same at every source albedo).
-    Difference { medium: u32, target: Vec3 },
-    /// Derivatives in several parameters of one medium at once (`MediumParams`): the
-    /// albedo's in `PathSample::second`, the extinction's and the phase asymmetry's in
+    AlbedoDifference { medium: u32, target: Vec3 },
+    /// Derivatives in several parameters of one medium at once (`Differentiated`): the
+    /// albedo's in `PathSample::d_albedo`, the extinction's and the phase asymmetry's in
     /// `PathSample::d_sigma` and `d_g`.
-    Medium { medium: u32, params: MediumParams },
+    MediumDerivatives { medium: u32, params: Differentiated },
     /// Reverse mode in the voxels of one grid medium (`integrator::backward`): its
     /// flights and shadow rays are tracked by `medium::differential`, in both passes of
     /// path replay (`sample_adjoint`), so that both take the same paths.
@@ -256,7 +256,7 @@ pub enum AdjointDefect {
     Ghosts,
 }
 
-/// Which parameters of one medium a render differentiates (`Gradient::Medium`).
+/// Which parameters of one medium a render differentiates (`Estimand::MediumDerivatives`).
 ///
 /// Each is forward mode beside β with sampling detached (the paper's Eq. 6–8 for the
 /// albedo, generalised): a path's pdf is held fixed and its contribution f
@@ -275,7 +275,7 @@ pub enum AdjointDefect {
 /// * g (HG phase): each phase value on the path, sampled (f/p = 1) or evaluated for an
 ///   emitter sample, ∂ ln p_HG / ∂g (`medium::phase::hg_log_derivative_g`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct MediumParams {
+pub struct Differentiated {
     pub albedo: bool,
     pub extinction: bool,
     pub g: bool,
@@ -285,9 +285,9 @@ pub struct MediumParams {
     pub without_shadow_term: bool,
 }
 
-impl MediumParams {
+impl Differentiated {
     /// Every parameter: the albedo, the extinction and g.
-    pub const ALL: MediumParams = MediumParams {
+    pub const ALL: Differentiated = Differentiated {
         albedo: true,
         extinction: true,
         g: true,
@@ -295,15 +295,15 @@ impl MediumParams {
     };
 }
 
-impl Gradient {
+impl Estimand {
     fn medium(self) -> Option<u32> {
         match self {
-            Gradient::None => None,
-            Gradient::Albedo(m)
-            | Gradient::AlbedoIgnoringNeeVertex(m)
-            | Gradient::Difference { medium: m, .. } => Some(m),
-            Gradient::Medium { medium, params } => params.albedo.then_some(medium),
-            Gradient::Adjoint(_) => None,
+            Estimand::RadianceOnly => None,
+            Estimand::AlbedoDerivative(m)
+            | Estimand::AlbedoDerivativeIgnoringNeeVertex(m)
+            | Estimand::AlbedoDifference { medium: m, .. } => Some(m),
+            Estimand::MediumDerivatives { medium, params } => params.albedo.then_some(medium),
+            Estimand::Adjoint(_) => None,
         }
     }
 
@@ -311,7 +311,7 @@ impl Gradient {
     #[inline]
     pub fn extinction_medium(self) -> Option<u32> {
         match self {
-            Gradient::Medium { medium, params } if params.extinction => Some(medium),
+            Estimand::MediumDerivatives { medium, params } if params.extinction => Some(medium),
             _ => None,
         }
     }
@@ -320,24 +320,24 @@ impl Gradient {
     /// power tests' wrong estimator).
     #[inline]
     fn without_shadow_term(self) -> bool {
-        matches!(self, Gradient::Medium { params, .. } if params.without_shadow_term)
+        matches!(self, Estimand::MediumDerivatives { params, .. } if params.without_shadow_term)
     }
 
     /// The medium whose phase asymmetry g is differentiated, if any.
     #[inline]
     pub fn g_medium(self) -> Option<u32> {
         match self {
-            Gradient::Medium { medium, params } if params.g => Some(medium),
+            Estimand::MediumDerivatives { medium, params } if params.g => Some(medium),
             _ => None,
         }
     }
 
     /// Whether the render estimates the albedo's derivative (or the difference) into
-    /// `PathSample::second`.
-    pub fn has_second(self) -> bool {
+    /// `PathSample::d_albedo`.
+    pub fn has_d_albedo(self) -> bool {
         match self {
-            Gradient::None | Gradient::Adjoint(_) => false,
-            Gradient::Medium { params, .. } => params.albedo,
+            Estimand::RadianceOnly | Estimand::Adjoint(_) => false,
+            Estimand::MediumDerivatives { params, .. } => params.albedo,
             _ => true,
         }
     }
@@ -351,7 +351,9 @@ impl Gradient {
     #[inline]
     pub(super) fn vertex_factors(self, mi: u32, albedo: Vec3) -> (Vec3, Vec3) {
         match self {
-            Gradient::Difference { medium, target } if medium == mi => (target, target - albedo),
+            Estimand::AlbedoDifference { medium, target } if medium == mi => {
+                (target, target - albedo)
+            }
             g if g.medium() == Some(mi) => (albedo, Vec3::ONE),
             _ => (albedo, Vec3::ZERO),
         }
@@ -363,7 +365,7 @@ impl Gradient {
 #[derive(Clone, Copy, Debug)]
 pub struct PathSettings<'a> {
     pub albedo: &'a [Vec3],
-    pub gradient: Gradient,
+    pub estimand: Estimand,
 }
 
 /// One radiance sample along the camera ray (o, d), the camera sitting in

@@ -147,7 +147,7 @@ pub fn collision_weight<F: Float>(
 
 /// ∂/∂σ_t (per channel) of [`collision_weight`]'s f = T σ_t over the same, detached
 /// p_h: ∂(σ_t e^{−σ_t t})/∂σ_t = T (1 − σ_t t), so T (1 − σ_t t) / (σ_t,h T_h)
-/// (volpath's `MediumParams`). Finite where a channel's σ_t is 0, unlike
+/// (volpath's `Differentiated`). Finite where a channel's σ_t is 0, unlike
 /// [`collision_weight`] times the score 1/σ_t − t.
 #[inline(always)]
 pub fn collision_weight_d_sigma<F: Float>(

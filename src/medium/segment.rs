@@ -156,7 +156,7 @@ impl Tracked for f32x8 {
 
 impl HeterogeneousMedium {
     /// ∂ ln f / ∂scale of free flights by delta tracking (σ_t = scale · σ, `volpath`'s
-    /// `MediumParams`), in the paths of `mask` (0 elsewhere): 1/scale − ∫₀ᵗ σ for a
+    /// `Differentiated`), in the paths of `mask` (0 elsewhere): 1/scale − ∫₀ᵗ σ for a
     /// real collision at t, −∫₀^end σ (1) for a flight past its segment's end, each
     /// integral one lookup's estimate (`depth_estimate`).
     #[inline(always)]

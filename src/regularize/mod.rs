@@ -1,6 +1,6 @@
 //! The paper's method (Wu et al. 2024, "Efficient participating media rendering with
 //! differentiable regularization"): render at a lower source albedo α_s, estimate
-//! d(radiance)/d(albedo) in the same paths (`integrator::volpath`, `Gradient::Albedo`),
+//! d(radiance)/d(albedo) in the same paths (`integrator::volpath`, `Estimand::AlbedoDerivative`),
 //! denoise the gradient, and predict the image at the target albedo α_t.
 //!
 //! `pipeline` runs the whole method (`options`: what it is asked, and the options it

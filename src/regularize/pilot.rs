@@ -16,7 +16,7 @@
 //!
 //! The pilot renders `chunks` independent images of `spp` samples at each factor with
 //! the same seeds for every factor. Sampling depends on σ_t only and the difference's
-//! Russian roulette on the target's weight only (`volpath::Gradient::Difference`), so
+//! Russian roulette on the target's weight only (`volpath::Estimand::AlbedoDifference`), so
 //! every candidate sees exactly the same paths: their differences are measured with far
 //! less noise than each alone (common random numbers). From the images D_k and their
 //! mean D̄ (P1)'s terms are:
@@ -53,7 +53,7 @@
 
 use super::spatial::{self, BilateralParams, Features};
 use crate::image::stats::{Estimate, PixelLayout};
-use crate::integrator::volpath::Gradient;
+use crate::integrator::volpath::Estimand;
 use crate::integrator::{render, RenderOptions};
 use crate::scene::shot::Shot;
 use crate::scene::Scene;
@@ -303,7 +303,7 @@ fn measure(
     let samples = (chunks as u32 * spp) as f64;
     let layout = PixelLayout::independent(shot.film.crop_size.0);
     let options = RenderOptions {
-        gradient: Gradient::Difference { medium, target },
+        estimand: Estimand::AlbedoDifference { medium, target },
         ..Default::default()
     }
     .with_albedo(scene, medium, target * factor);

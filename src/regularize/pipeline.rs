@@ -29,7 +29,7 @@ use super::spatial;
 use super::temporal::{self, Reprojection};
 use crate::denoise::{self, AuxUse};
 use crate::image::Image;
-use crate::integrator::volpath::Gradient;
+use crate::integrator::volpath::Estimand;
 use crate::integrator::{aovs, render, RenderOptions, Rendered};
 use crate::scene::shot::Shot;
 use crate::scene::Scene;
@@ -115,7 +115,7 @@ pub fn regularize(
         ..Default::default()
     };
     if opts.pick && opts.oidn == OidnUse::Frames && run.frames.len() > 1 {
-        if let Gradient::Difference { .. } = run.gradient {
+        if let Estimand::AlbedoDifference { .. } = run.gradient {
             return run.picked(choice, timings);
         }
     }
@@ -319,7 +319,7 @@ struct Run<'a> {
     albedos: Albedos,
     /// Each frame's camera-to-world, the target frame (k = 0) first.
     frames: Vec<Mat4>,
-    gradient: Gradient,
+    gradient: Estimand,
     bar: ProgressBar,
 }
 
@@ -388,12 +388,12 @@ impl<'a> Run<'a> {
         };
         // What the frames render beside the radiance: the derivative, or the difference.
         let gradient = match opts.method {
-            Method::Difference => Gradient::Difference {
+            Method::Difference => Estimand::AlbedoDifference {
                 medium: opts.medium,
                 target: albedos.target,
             },
-            Method::Radiance => Gradient::None,
-            _ => Gradient::Albedo(opts.medium),
+            Method::Radiance => Estimand::RadianceOnly,
+            _ => Estimand::AlbedoDerivative(opts.medium),
         };
         // At factor 1 the difference is 0: the frames are plain renders (`render`'s image,
         // bit for bit), which is how the method falls back to plain volpath.
@@ -406,7 +406,11 @@ impl<'a> Run<'a> {
             features,
             albedos,
             frames,
-            gradient: if plain { Gradient::None } else { gradient },
+            gradient: if plain {
+                Estimand::RadianceOnly
+            } else {
+                gradient
+            },
             bar,
         }
     }
@@ -424,7 +428,7 @@ impl<'a> Run<'a> {
         let mut frame = self.shot.with(spp.unwrap_or(self.shot.spp), seed);
         frame.camera.to_world = to_world;
         let options = RenderOptions {
-            gradient: self.gradient,
+            estimand: self.gradient,
             seen_emission,
             ..Default::default()
         }

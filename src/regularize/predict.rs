@@ -25,7 +25,7 @@ pub enum Predictor {
     Linear,
     LogLinear,
     /// R_t = R_s + D, D the (denoised) difference R(α_t) − R(α_s) rendered in the same
-    /// paths (`Gradient::Difference`): no model of R(α) and so no bias of one; only the
+    /// paths (`Estimand::AlbedoDifference`): no model of R(α) and so no bias of one; only the
     /// denoising of D can bias it.
     Difference,
 }

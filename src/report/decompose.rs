@@ -16,7 +16,7 @@
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use crate::integrator::volpath::Gradient;
+use crate::integrator::volpath::Estimand;
 use crate::integrator::{render, RenderOptions};
 use crate::regularize::pilot::Pilot;
 use crate::scene::shot::Shot;
@@ -50,7 +50,7 @@ pub struct Decomposition {
 /// k̄ = Σ α ∂R/∂α / Σ R at `albedo` for `medium`, from `spp` samples.
 pub fn mean_vertices(scene: &Scene, shot: &Shot, medium: u32, albedo: Vec3, spp: u32) -> f64 {
     let options = RenderOptions {
-        gradient: Gradient::Albedo(medium),
+        estimand: Estimand::AlbedoDerivative(medium),
         ..Default::default()
     }
     .with_albedo(scene, medium, albedo);

@@ -121,14 +121,14 @@ pub fn render_gradient_chunks(
     k: usize,
     spp: u32,
     base_seed: u64,
-    gradient: mediareg::integrator::volpath::Gradient,
+    estimand: mediareg::integrator::volpath::Estimand,
 ) -> Vec<Vec<[f32; 3]>> {
     (0..k)
         .map(|i| {
             let s = load_seeded(scene, params, spp, base_seed + i as u64);
             let opts = mediareg::integrator::RenderOptions {
                 show_progress: false,
-                gradient,
+                estimand,
                 ..Default::default()
             };
             mediareg::integrator::render(&s, &s.shot, &opts)

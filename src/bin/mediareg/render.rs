@@ -9,7 +9,7 @@ use clap::Args;
 
 use mediareg::denoise::{self, AuxUse};
 use mediareg::image;
-use mediareg::integrator::{self, aovs, volpath::Gradient, GradientError, MediumParam};
+use mediareg::integrator::{self, aovs, volpath::Estimand, GradientError, MediumParam};
 use mediareg::scene::ray_log::{self, RayLog};
 use mediareg::scene::Scene;
 
@@ -100,8 +100,8 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         Some(list) => MediumParam::parse_list(list).map_err(|e| anyhow!("--gradient: {e}"))?,
         None => Vec::new(),
     };
-    let (gradient, medium_index) = if params.is_empty() {
-        (Gradient::None, 0)
+    let (estimand, medium_index) = if params.is_empty() {
+        (Estimand::RadianceOnly, 0)
     } else {
         let names: Vec<&str> = params.iter().map(|p| p.name()).collect();
         let flag = format!("--gradient {}", names.join(","));
@@ -128,7 +128,7 @@ pub fn run(cmd: RenderArgs) -> Result<()> {
         &scene_data.shot,
         &integrator::RenderOptions {
             show_progress: show,
-            gradient,
+            estimand,
             seen_emission: denoise.is_some(),
             cancel: Some(Arc::clone(&INTERRUPT)),
             ..Default::default()

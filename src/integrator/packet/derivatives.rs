@@ -1,9 +1,9 @@
 //! The derivatives in one medium's extinction and Henyey–Greenstein g in lanes, beside
-//! the paths' β (volpath's `MediumParams`, `Gradient::Medium`): forward mode with the
-//! sampling detached, each weight dσ = ∂β/∂σ_t (∂β/∂scale in a heterogeneous medium)
-//! and dg = ∂β/∂g scaled wherever β is, plus β times the score ∂ ln f/∂θ of each factor
-//! f of the path that depends on θ (the flights in the medium, its phase values, the
-//! shadow rays' transmittance through it). Where the render asks for neither, every
+//! the paths' β (volpath's `Differentiated`, `Estimand::MediumDerivatives`): forward
+//! mode with the sampling detached, each weight dσ = ∂β/∂σ_t (∂β/∂scale in a
+//! heterogeneous medium) and dg = ∂β/∂g scaled wherever β is, plus β times the score
+//! ∂ ln f/∂θ of each factor f of the path that depends on θ (the flights in the medium,
+//! its phase values, the shadow rays' transmittance through it). Where the render asks for neither, every
 //! method returns at once: a plain render does none of this arithmetic.
 
 use glam::Vec3;

@@ -75,9 +75,9 @@ struct Passage {
 }
 
 /// The paths of a packet, one a lane: weights, rays, where they are, what they gathered.
-/// `D`: whether the render estimates a derivative (`Gradient` other than `None`). A plain
-/// render's packet is the instance without, in which dβ, dσ and dg (all zero there) are
-/// neither carried nor updated: it does none of their arithmetic.
+/// `D`: whether the render estimates a derivative (`Estimand` other than
+/// `RadianceOnly`). A plain render's packet is the instance without, in which dβ, dσ and
+/// dg (all zero there) are neither carried nor updated: it does none of their arithmetic.
 pub(super) struct PacketPaths<const D: bool> {
     o: V3,
     d: V3,
@@ -90,7 +90,7 @@ pub(super) struct PacketPaths<const D: bool> {
     d_result: V3,
     depth: L,
     /// The medium shape each path is in, and the surface it is on (as f32; −1: none).
-    inside: L,
+    medium_shape: L,
     on_surface: L,
     /// Null-boundary crossings since the last vertex (volpath's MAX_NULL_CROSSINGS: a
     /// ray caught at a grazing exit would otherwise cross forever).
@@ -173,7 +173,7 @@ impl<const D: bool> PacketPaths<D> {
             result: V3::splat(Vec3::ZERO),
             d_result: V3::splat(Vec3::ZERO),
             depth: L::ZERO,
-            inside: ps.camera_shape.map_or(none, |i| L::splat(i as f32)),
+            medium_shape: ps.camera_shape.map_or(none, |i| L::splat(i as f32)),
             on_surface: none,
             crossings: L::ZERO,
             last_p: o,
@@ -228,7 +228,7 @@ impl<const D: bool> PacketPaths<D> {
         for (k, s) in out.iter_mut().enumerate() {
             *s = PathSample {
                 radiance: self.result.lane(k),
-                second: self.d_result.lane(k),
+                d_albedo: self.d_result.lane(k),
                 d_sigma: self.derivs.sigma_result.lane(k),
                 d_g: self.derivs.g_result.lane(k),
                 seen_emission: self.seen_emission.lane(k),
@@ -308,8 +308,8 @@ impl<const D: bool> PacketPaths<D> {
     #[inline(always)]
     fn ray_ends(&self, ps: &PacketScene) -> RayEnds {
         let none = L::splat(NONE);
-        let (o, d, inside) = (self.o, self.d, self.inside);
-        let in_medium = self.alive & inside.cmp_ge(L::ZERO);
+        let (o, d, medium_shape) = (self.o, self.d, self.medium_shape);
+        let in_medium = self.alive & medium_shape.cmp_ge(L::ZERO);
         let in_space = self.alive & !in_medium;
         let mut t_end = L::splat(f32::INFINITY);
         let mut entered = none;
@@ -317,7 +317,7 @@ impl<const D: bool> PacketPaths<D> {
         for (i, m) in ps.media_shapes.iter().enumerate() {
             let span = MediumSpan::new(&m.kind, o, d);
             let index = L::splat(i as f32);
-            t_end = (in_medium & inside.cmp_eq(index)).blend(span.exit, t_end);
+            t_end = (in_medium & medium_shape.cmp_eq(index)).blend(span.exit, t_end);
             let enters =
                 in_space & span.enters & span.near.cmp_lt(t_end) & span.near.cmp_lt(self.tmax);
             t_end = enters.blend(span.near, t_end);
@@ -325,7 +325,7 @@ impl<const D: bool> PacketPaths<D> {
         }
         // The surfaces in the medium (or empty space) each path is in.
         for (k, surface) in ps.surfaces.iter().enumerate() {
-            let here = self.alive & inside.cmp_eq(L::splat(surface.container));
+            let here = self.alive & medium_shape.cmp_eq(L::splat(surface.container));
             if here.none() {
                 continue;
             }
@@ -356,7 +356,8 @@ impl<const D: bool> PacketPaths<D> {
             Some(m) => m,
             None => {
                 let hero_of = |v: V3| self.hero_of(v);
-                gathered = gather_media(ctx.ps, ctx.settings, self.inside, in_medium, &hero_of);
+                gathered =
+                    gather_media(ctx.ps, ctx.settings, self.medium_shape, in_medium, &hero_of);
                 &gathered
             }
         };
@@ -389,9 +390,9 @@ impl<const D: bool> PacketPaths<D> {
         let leaves = passed & !ends.meets_surface;
         // (At a dielectric boundary the path stays in until the boundary's sample says
         // otherwise.)
-        let leaves_to_boundary = leaves & dielectric_of(ctx.ps, self.inside);
+        let leaves_to_boundary = leaves & dielectric_of(ctx.ps, self.medium_shape);
         let leaves = leaves & !leaves_to_boundary;
-        self.inside = leaves.blend(L::splat(NONE), self.inside);
+        self.medium_shape = leaves.blend(L::splat(NONE), self.medium_shape);
         self.crossings = leaves.blend(self.crossings + L::ONE, self.crossings);
         Passage {
             reached,
@@ -486,7 +487,7 @@ impl<const D: bool> PacketPaths<D> {
                     self.scale_derivatives(in_medium, w);
                     if self.derivs.sigma_on() {
                         // ∂f/∂σ_t over the same p: T (1 − σ_t t) at a collision, −t T
-                        // passing (volpath's `MediumParams`).
+                        // passing (volpath's `Differentiated`).
                         let dw = collision_weight_d_sigma(tr, m.sigma, t, m.sigma_hero, tr_hero);
                         let dw = w_passed.scale(-t).select(collided, dw);
                         self.derivs
@@ -509,7 +510,7 @@ impl<const D: bool> PacketPaths<D> {
         let mut d_beta_before = self.d_beta;
         if D {
             d_beta_before = self.d_beta.mul(m.albedo).mul(volume_albedo);
-            // d(β α)/dα: dβ a + β b at a vertex (Gradient::vertex_factors).
+            // d(β α)/dα: dβ a + β b at a vertex (Estimand::vertex_factors).
             let d_beta_vertex = self
                 .d_beta
                 .mul(m.a)
@@ -551,14 +552,14 @@ impl<const D: bool> PacketPaths<D> {
     ) {
         let (ps, d) = (ctx.ps, self.d);
         let p = self.o.add(d.scale(flight));
-        let nee = collided & !dielectric_of(ps, self.inside);
+        let nee = collided & !dielectric_of(ps, self.medium_shape);
         if ps.samples_emitters && nee.any() {
             let es = sample_emitters(ctx.scene, ps, p, nee, rngs);
             if es.some.any() {
                 let cos = d.dot(es.d);
                 let phase = hg_eval(m.g, cos);
                 let ray = (p, es.d, es.dist);
-                let from = (self.inside, L::splat(NONE));
+                let from = (self.medium_shape, L::splat(NONE));
                 let extinction = ctx.settings.extinction;
                 let shadow =
                     shadow_transmittance(ctx.scene, ps, ray, from, es.some, extinction, rngs);
@@ -631,14 +632,16 @@ impl<const D: bool> PacketPaths<D> {
                 .o
                 .select(enters, self.o.sub(n.scale(offset_magnitude(ps, self.o))));
         }
-        self.inside = enters.blend(ends.entered, self.inside);
+        self.medium_shape = enters.blend(ends.entered, self.medium_shape);
         self.crossings = enters.blend(self.crossings + L::ONE, self.crossings);
         self.alive &= !self.crossings.cmp_gt(L::splat(MAX_NULL_CROSSINGS));
         self.on_surface = ends.in_medium.blend(none, self.on_surface);
         self.on_surface = meets_medium.blend(none, self.on_surface);
         let at_boundary = self.alive & (meets_boundary | passage.leaves_to_boundary);
         if at_boundary.any() {
-            let shape = passage.leaves_to_boundary.blend(self.inside, ends.entered);
+            let shape = passage
+                .leaves_to_boundary
+                .blend(self.medium_shape, ends.entered);
             self.through_boundary(ps, shape, at_boundary, rngs);
         }
         let escapes = in_space & !meets_medium & !lands;
@@ -684,7 +687,7 @@ impl<const D: bool> PacketPaths<D> {
         // Into the medium or out of it, by the side the new direction points to, off the
         // boundary by the spawn offset (`geometry::offset_point`).
         let into = b.wo.dot(b.n).cmp_lt(L::ZERO);
-        self.inside = ok.blend(into.blend(shape, L::splat(NONE)), self.inside);
+        self.medium_shape = ok.blend(into.blend(shape, L::splat(NONE)), self.medium_shape);
         let offset = offset_magnitude(ps, self.o);
         let offset = into.blend(-offset, offset);
         self.o = self.o.select(ok, self.o.add(b.n.scale(offset)));
@@ -725,7 +728,7 @@ impl<const D: bool> PacketPaths<D> {
             let first = at_surface
                 & self.depth.cmp_eq(L::ZERO)
                 & self.crossings.cmp_eq(L::ZERO)
-                & self.inside.cmp_lt(L::ZERO);
+                & self.medium_shape.cmp_lt(L::ZERO);
             self.seen_emission = self.seen_emission.select(first, seen);
         }
         let cos_in = -self.d.dot(n);
@@ -737,7 +740,7 @@ impl<const D: bool> PacketPaths<D> {
             let lit = es.some & front & cos_out.cmp_gt(L::ZERO);
             if lit.any() {
                 let ray = (self.o, es.d, es.dist);
-                let from = (self.inside, hit_surface);
+                let from = (self.medium_shape, hit_surface);
                 let extinction = ctx.settings.extinction;
                 let shadow = shadow_transmittance(ctx.scene, ps, ray, from, lit, extinction, rngs);
                 let pdf = cos_out * L::splat(std::f32::consts::FRAC_1_PI);

@@ -7,7 +7,7 @@ use super::tests::{
     lit_spheres, load_xml, packet_samples, rays, FOG, TWO_SPHERES,
 };
 use super::*;
-use crate::integrator::volpath::{Gradient, PathSettings};
+use crate::integrator::volpath::{Estimand, PathSettings};
 
 /// Samples a ray: enough for every kind of vertex on each scene's rays.
 const N: usize = 2_000;
@@ -20,7 +20,7 @@ fn bits(s: &PathSample) -> ([u32; 6], bool) {
 }
 
 fn zero_derivatives(s: &PathSample) -> bool {
-    s.second == Vec3::ZERO && s.d_sigma == Vec3::ZERO && s.d_g == Vec3::ZERO
+    s.d_albedo == Vec3::ZERO && s.d_sigma == Vec3::ZERO && s.d_g == Vec3::ZERO
 }
 
 /// The samples of `scene`'s rays without a derivative, in the instance `derivatives`.
@@ -29,7 +29,7 @@ fn plain_samples(scene: &Scene, rays: &[Vec3A], derivatives: bool) -> Vec<PathSa
     let ps = PacketScene::new(scene).expect("the packet takes the scene");
     let mut settings = PacketSettings::new(&PathSettings {
         albedo: &albedo,
-        gradient: Gradient::None,
+        estimand: Estimand::RadianceOnly,
     });
     assert!(
         !settings.derivatives,

@@ -7,7 +7,7 @@ use crate::bsdf::Bsdf;
 use crate::emitter::Emitter;
 use crate::geometry::cuboid::Cuboid;
 use crate::geometry::shape::Geometry;
-use crate::integrator::volpath::{Gradient, PathSettings};
+use crate::integrator::volpath::{Estimand, PathSettings};
 use crate::medium::Phase;
 use crate::scene::ties::Ties;
 use crate::scene::{IntegratorKind, Scene};
@@ -405,7 +405,7 @@ fn clear_of(m: &MediumShape, s: &Surface) -> bool {
 }
 
 /// A render's per-medium values: its albedo and the factors (a, b) by which a vertex
-/// there updates dβ (`Gradient::vertex_factors`); and which derivatives it estimates.
+/// there updates dβ (`Estimand::vertex_factors`); and which derivatives it estimates.
 #[derive(Clone, Debug)]
 pub struct PacketSettings {
     pub albedo: Vec<Vec3>,
@@ -414,14 +414,14 @@ pub struct PacketSettings {
     /// The difference's paths are rouletted by β + dβ (volpath's roulette).
     pub roulette_by_target: bool,
     /// The power tests' wrong derivative: a medium vertex's emitter sample weighed by
-    /// dβ without the vertex's own albedo (`Gradient::AlbedoIgnoringNeeVertex`).
+    /// dβ without the vertex's own albedo (`Estimand::AlbedoDerivativeIgnoringNeeVertex`).
     pub nee_ignores_vertex: bool,
     /// The medium whose extinction (σ_t; a heterogeneous one's scale) and whose
-    /// Henyey–Greenstein g are differentiated, if any (`Gradient::Medium`).
+    /// Henyey–Greenstein g are differentiated, if any (`Estimand::MediumDerivatives`).
     pub extinction: Option<u32>,
     pub g: Option<u32>,
     /// The power tests' wrong derivative: the shadow rays' ∂ ln T left out
-    /// (`MediumParams::without_shadow_term`).
+    /// (`Differentiated::without_shadow_term`).
     pub without_shadow_term: bool,
     /// Whether any derivative is estimated (dβ, dσ, dg): a plain render's paths carry
     /// none (`PacketPaths`' instance without).
@@ -434,7 +434,7 @@ impl PacketSettings {
         let (factor_a, factor_b) = (0..n)
             .map(|m| {
                 settings
-                    .gradient
+                    .estimand
                     .vertex_factors(m as u32, settings.albedo[m])
             })
             .unzip();
@@ -442,15 +442,18 @@ impl PacketSettings {
             albedo: settings.albedo.to_vec(),
             factor_a,
             factor_b,
-            roulette_by_target: matches!(settings.gradient, Gradient::Difference { .. }),
-            nee_ignores_vertex: matches!(settings.gradient, Gradient::AlbedoIgnoringNeeVertex(_)),
-            extinction: settings.gradient.extinction_medium(),
-            g: settings.gradient.g_medium(),
-            without_shadow_term: matches!(
-                settings.gradient,
-                Gradient::Medium { params, .. } if params.without_shadow_term
+            roulette_by_target: matches!(settings.estimand, Estimand::AlbedoDifference { .. }),
+            nee_ignores_vertex: matches!(
+                settings.estimand,
+                Estimand::AlbedoDerivativeIgnoringNeeVertex(_)
             ),
-            derivatives: !matches!(settings.gradient, Gradient::None),
+            extinction: settings.estimand.extinction_medium(),
+            g: settings.estimand.g_medium(),
+            without_shadow_term: matches!(
+                settings.estimand,
+                Estimand::MediumDerivatives { params, .. } if params.without_shadow_term
+            ),
+            derivatives: !matches!(settings.estimand, Estimand::RadianceOnly),
         }
     }
 }

@@ -3,7 +3,7 @@
 //! test beside it, and the scenes it takes or refuses.
 
 use super::*;
-use crate::integrator::volpath::{self, Gradient, MediumParams, PathSettings};
+use crate::integrator::volpath::{self, Differentiated, Estimand, PathSettings};
 
 /// Two media spheres under a sky: a grey forward-scattering one and a chromatic
 /// backward-scattering one (σ_t of its channels within a factor 4: every channel's
@@ -242,7 +242,7 @@ pub(super) fn box_rays() -> Vec<Vec3A> {
 const IMAGES: usize = 4;
 
 fn image(s: &PathSample, q: usize) -> Vec3 {
-    [s.radiance, s.second, s.d_sigma, s.d_g][q]
+    [s.radiance, s.d_albedo, s.d_sigma, s.d_g][q]
 }
 
 /// Mean and variance of the mean of `n` samples, per channel of each image.
@@ -331,7 +331,7 @@ pub(super) fn packet_samples(
 fn largest_z(
     scene: &Scene,
     rays: &[Vec3A],
-    gradient: Gradient,
+    gradient: Estimand,
     packet_albedo: Option<Vec<Vec3>>,
     seed: u64,
 ) -> f32 {
@@ -343,7 +343,7 @@ fn largest_z_against(
     scene: &Scene,
     packet_scene: &Scene,
     rays: &[Vec3A],
-    gradient: Gradient,
+    gradient: Estimand,
     packet_albedo: Option<Vec<Vec3>>,
     seed: u64,
 ) -> f32 {
@@ -363,20 +363,20 @@ fn largest_z_over(
     scene: &Scene,
     packet_scene: &Scene,
     rays: &[Vec3A],
-    (gradient, packet_albedo, jitter): (Gradient, Option<Vec<Vec3>>, f32),
+    (estimand, packet_albedo, jitter): (Estimand, Option<Vec<Vec3>>, f32),
     seed: u64,
     n: usize,
 ) -> f32 {
     let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
     let settings = PathSettings {
         albedo: &albedo,
-        gradient,
+        estimand,
     };
     let ps = PacketScene::new(packet_scene).expect("the packet takes the scene");
     let packet_albedo = packet_albedo.unwrap_or_else(|| albedo.clone());
     let packet_settings = PacketSettings::new(&PathSettings {
         albedo: &packet_albedo,
-        gradient,
+        estimand,
     });
     let mut worst = 0f32;
     for &d in rays {
@@ -410,7 +410,7 @@ fn largest_z_over(
 const Z_LIMIT: f32 = 4.5;
 
 /// The derivatives in a medium's extinction, albedo and g, all three.
-const ALL_PARAMS: MediumParams = MediumParams::ALL;
+const ALL_PARAMS: Differentiated = Differentiated::ALL;
 
 /// The packet's radiance and each derivative (the albedo's, the difference, and the
 /// extinction's, the albedo's and g's together) equal the scalar integrator's in
@@ -424,18 +424,18 @@ fn packets_equal_scalar_paths_in_expectation() {
     let glass = load_xml("glass", &glass_and_area_light());
     let cloud = cloud("cloud", 0.7);
     let gradients = [
-        Gradient::None,
-        Gradient::Albedo(0),
-        Gradient::Albedo(1),
-        Gradient::Difference {
+        Estimand::RadianceOnly,
+        Estimand::AlbedoDerivative(0),
+        Estimand::AlbedoDerivative(1),
+        Estimand::AlbedoDifference {
             medium: 1,
             target: Vec3::new(0.95, 0.9, 0.8),
         },
-        Gradient::Medium {
+        Estimand::MediumDerivatives {
             medium: 0,
             params: ALL_PARAMS,
         },
-        Gradient::Medium {
+        Estimand::MediumDerivatives {
             medium: 1,
             params: ALL_PARAMS,
         },
@@ -452,12 +452,14 @@ fn packets_equal_scalar_paths_in_expectation() {
         for (name, scene, rays) in scenes {
             // The cloud's one medium is medium 0.
             let g = match g {
-                Gradient::Albedo(m) => Gradient::Albedo(m.min(scene.media.len() as u32 - 1)),
-                Gradient::Difference { medium, target } => Gradient::Difference {
+                Estimand::AlbedoDerivative(m) => {
+                    Estimand::AlbedoDerivative(m.min(scene.media.len() as u32 - 1))
+                }
+                Estimand::AlbedoDifference { medium, target } => Estimand::AlbedoDifference {
                     medium: medium.min(scene.media.len() as u32 - 1),
                     target,
                 },
-                Gradient::Medium { medium, params } => Gradient::Medium {
+                Estimand::MediumDerivatives { medium, params } => Estimand::MediumDerivatives {
                     medium: medium.min(scene.media.len() as u32 - 1),
                     params,
                 },
@@ -484,7 +486,13 @@ fn the_comparison_detects_an_albedo_two_percent_off() {
         for (m, scale) in [(0, Vec3::splat(0.98)), (1, Vec3::new(1.0, 0.98, 1.0))] {
             let mut off = albedo.clone();
             off[m] *= scale;
-            let z = largest_z(scene, &rays, Gradient::None, Some(off), 300 + m as u64);
+            let z = largest_z(
+                scene,
+                &rays,
+                Estimand::RadianceOnly,
+                Some(off),
+                300 + m as u64,
+            );
             println!("{name}, medium {m} off by 2%: largest |z| {z:.2}");
             assert!(
                 z >= Z_LIMIT,
@@ -502,14 +510,27 @@ fn the_comparison_detects_a_cloud_two_percent_darker_or_five_percent_denser() {
     let scene = cloud("cloud_power", 0.7);
     let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
     let darker = albedo.iter().map(|a| *a * 0.98).collect();
-    let z = largest_z(&scene, &cloud_rays(), Gradient::None, Some(darker), 800);
+    let z = largest_z(
+        &scene,
+        &cloud_rays(),
+        Estimand::RadianceOnly,
+        Some(darker),
+        800,
+    );
     println!("cloud 2% darker: largest |z| {z:.2}");
     assert!(
         z >= Z_LIMIT,
         "the cloud 2% darker went undetected: |z| = {z}"
     );
     let denser = cloud("cloud_denser", 0.735);
-    let z = largest_z_against(&scene, &denser, &cloud_rays(), Gradient::None, None, 810);
+    let z = largest_z_against(
+        &scene,
+        &denser,
+        &cloud_rays(),
+        Estimand::RadianceOnly,
+        None,
+        810,
+    );
     println!("cloud 5% denser: largest |z| {z:.2}");
     assert!(
         z >= Z_LIMIT,
@@ -539,7 +560,7 @@ fn the_comparison_detects_a_light_five_percent_off() {
             &format!("lit_spheres_{name}_off"),
             &lit_spheres().replace(from, to),
         );
-        let z = largest_z_against(&lit, &off, &lit_rays(), Gradient::None, None, 500);
+        let z = largest_z_against(&lit, &off, &lit_rays(), Estimand::RadianceOnly, None, 500);
         println!("{name} light 5% brighter: largest |z| {z:.2}");
         assert!(
             z >= Z_LIMIT,
@@ -567,7 +588,7 @@ fn the_comparison_detects_an_area_light_five_percent_off() {
         &boxed,
         &off,
         lit_by_it,
-        (Gradient::None, None, 0.0),
+        (Estimand::RadianceOnly, None, 0.0),
         600,
         4 * N,
     );
@@ -589,7 +610,7 @@ fn the_comparison_detects_an_area_light_five_percent_off() {
         &fog,
         &off,
         &lit_by_it,
-        (Gradient::None, None, 0.0),
+        (Estimand::RadianceOnly, None, 0.0),
         650,
         4 * N,
     );
@@ -611,7 +632,7 @@ fn the_comparison_detects_a_glass_transmitting_five_percent_less() {
         r#"<float name="int_ior" value="1.5"/><rgb name="specular_transmittance" value="0.95, 0.95, 0.95"/>"#,
     );
     let off = load_xml("glass_off", &off);
-    let z = largest_z_against(&glass, &off, &box_rays(), Gradient::None, None, 700);
+    let z = largest_z_against(&glass, &off, &box_rays(), Estimand::RadianceOnly, None, 700);
     println!("glass transmitting 5% less: largest |z| {z:.2}");
     assert!(
         z >= Z_LIMIT,
@@ -628,7 +649,7 @@ fn the_z_limit_holds_for_scalar_against_scalar() {
     let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
     let settings = PathSettings {
         albedo: &albedo,
-        gradient: Gradient::Albedo(1),
+        estimand: Estimand::AlbedoDerivative(1),
     };
     let mut alarms = 0;
     let trials = 8;
@@ -686,7 +707,7 @@ fn a_white_furnace_gives_back_the_sky() {
     let ps = PacketScene::new(&scene).expect("the furnace is a packet scene");
     let settings = PacketSettings::new(&PathSettings {
         albedo: &[Vec3::ONE],
-        gradient: Gradient::None,
+        estimand: Estimand::RadianceOnly,
     });
     let d = Vec3A::new(0.05, -0.1, -1.0).normalize();
     let samples = packet_samples(&scene, &ps, &settings, (d, 0.0), 7, N);

@@ -7,7 +7,7 @@
 use glam::{Vec3, Vec3A};
 
 use super::{
-    emission_seen, mean, medium_after, medium_emitter_sample, shadow_transmittance, Gradient,
+    emission_seen, mean, medium_after, medium_emitter_sample, shadow_transmittance, Estimand,
     LastScatter, MediumLight, PathSettings, ShadowRay, MAX_NULL_CROSSINGS,
 };
 use crate::bsdf::Bsdf;
@@ -36,7 +36,7 @@ pub(super) struct PathState<'a> {
     /// difference's weight.
     d_beta: Vec3,
     /// d β / dθ for the chosen medium's extinction and phase asymmetry
-    /// (`volpath::MediumParams`; zero where not asked for).
+    /// (`volpath::Differentiated`; zero where not asked for).
     d_sigma: Vec3,
     d_g: Vec3,
     /// r_c = p_c / p_hero.
@@ -167,7 +167,7 @@ impl<'a> PathState<'a> {
     pub(super) fn sample(&self) -> PathSample {
         PathSample {
             radiance: self.result,
-            second: self.d_result,
+            d_albedo: self.d_result,
             d_sigma: self.d_sigma_result,
             d_g: self.d_g_result,
             seen_emission: self.seen_emission,
@@ -203,8 +203,8 @@ impl<'a> PathState<'a> {
             // (≥ β): by β, long paths, which weigh (α_t/α)^k more at the target, would
             // end early and their survivors' 1/q give D a heavy tail; by β_t, |dβ|/q stays
             // bounded, and q is the same at every source albedo.
-            let roulette_weight = match settings.gradient {
-                Gradient::Difference { .. } => self.beta + self.d_beta,
+            let roulette_weight = match settings.estimand {
+                Estimand::AlbedoDifference { .. } => self.beta + self.d_beta,
                 _ => self.beta,
             };
             let q = continue_probability(roulette_weight.into(), self.d_beta.into(), self.eta);
@@ -243,8 +243,8 @@ impl<'a> PathState<'a> {
         // up (for its emitter sample): the same point, the same value.
         let known_clearance = self.origin_clearance.take();
         match m.heterogeneous.as_deref() {
-            Some(het) => match settings.gradient {
-                Gradient::Adjoint(a) if a.medium == mi => {
+            Some(het) => match settings.estimand {
+                Estimand::Adjoint(a) if a.medium == mi => {
                     self.differential_tracking(scene, settings, a, het, rng)
                 }
                 _ => self.delta_tracking(scene, settings, mi, het, rng),
@@ -284,7 +284,7 @@ impl<'a> PathState<'a> {
             // the volume's value beside it.
             let volume_albedo = Vec3::from(f.albedo);
             flight.d_beta_before = self.d_beta * albedo * volume_albedo;
-            let (a, b) = settings.gradient.vertex_factors(mi, albedo);
+            let (a, b) = settings.estimand.vertex_factors(mi, albedo);
             self.d_beta = (self.d_beta * a + self.beta * b) * volume_albedo;
             self.beta *= albedo * volume_albedo;
             self.d_sigma *= albedo * volume_albedo;
@@ -295,8 +295,8 @@ impl<'a> PathState<'a> {
             flight.si = hit;
             flight.t = end;
         }
-        // d/d scale (`volpath::MediumParams`), with β's α at a collision.
-        if settings.gradient.extinction_medium() == Some(mi) {
+        // d/d scale (`volpath::Differentiated`), with β's α at a collision.
+        if settings.estimand.extinction_medium() == Some(mi) {
             let score = het.flight_scale_score(ray, &f, end, true);
             self.d_sigma += self.beta * Vec3::from(score);
         }
@@ -378,7 +378,7 @@ impl<'a> PathState<'a> {
             self.result += self.beta * pass * le;
             self.d_result += self.d_beta * pass * le;
             // ∂T/∂σ_t = −t T in the chosen medium.
-            let d_sigma = match settings.gradient.extinction_medium() == Some(mi) {
+            let d_sigma = match settings.estimand.extinction_medium() == Some(mi) {
                 true => self.d_sigma - self.beta * h.t,
                 false => self.d_sigma,
             };
@@ -391,7 +391,7 @@ impl<'a> PathState<'a> {
     /// The homogeneous flight's weights: α at a collision, and for chromatic σ_t the
     /// hero channel's f / p (`medium::collision_weight`, `pass_weight`), then mean(r) = 1.
     /// Where the extinction is differentiated, dβ/dσ_t beside them: f's ∂/∂σ_t with p
-    /// detached (`volpath::MediumParams`).
+    /// detached (`volpath::Differentiated`).
     #[inline(always)]
     fn flight_weights(
         &mut self,
@@ -402,7 +402,7 @@ impl<'a> PathState<'a> {
     ) {
         let albedo = settings.albedo[mi as usize];
         let hero = self.hero;
-        let chosen = settings.gradient.extinction_medium() == Some(mi);
+        let chosen = settings.estimand.extinction_medium() == Some(mi);
         // The length passed through without a collision (where none happened).
         let passed = flight.si.as_ref().map_or(self.ray_tmax, |h| h.t);
         if m.is_grey() {
@@ -411,7 +411,7 @@ impl<'a> PathState<'a> {
             // α is left, r is unchanged, and no transmittance is needed.
             if flight.scattered {
                 flight.d_beta_before = self.d_beta * albedo;
-                let (a, b) = settings.gradient.vertex_factors(mi, albedo);
+                let (a, b) = settings.estimand.vertex_factors(mi, albedo);
                 self.d_beta = self.d_beta * a + self.beta * b;
                 self.beta *= albedo;
                 self.d_sigma *= albedo;
@@ -438,7 +438,7 @@ impl<'a> PathState<'a> {
                     collision_weight(tr.into(), m.sigma_t.into(), m.sigma_t[hero], tr[hero]).into();
                 // d(β w α)/dα = dβ w α + β w in the chosen medium.
                 flight.d_beta_before = self.d_beta * w * albedo;
-                let (a, b) = settings.gradient.vertex_factors(mi, albedo);
+                let (a, b) = settings.estimand.vertex_factors(mi, albedo);
                 self.d_beta = self.d_beta * w * a + self.beta * w * b;
                 self.d_sigma *= w * albedo;
                 if chosen {
@@ -502,13 +502,13 @@ impl<'a> PathState<'a> {
         self.valid = true;
         let mi = self.medium.expect("a medium vertex");
         let m = &scene.media[mi as usize];
-        let g_chosen = settings.gradient.g_medium() == Some(mi);
+        let g_chosen = settings.estimand.g_medium() == Some(mi);
         let (t, p) = (flight.t, self.ray_o + self.ray_d * flight.t);
         // ---- Emitter sampling from the medium vertex ----
         // p lies within the flight's clearance less t, and within its own, which the next
         // flight (from p) starts with. A heterogeneous medium has no use for either: its
         // shadow rays are not rouletted, and its flights are cast in full.
-        let free = if m.heterogeneous.is_none() {
+        let clearance = if m.heterogeneous.is_none() {
             let at_p = scene.clearance.at(p);
             self.origin_clearance = Some(at_p);
             (flight.clearance - t).max(at_p)
@@ -517,7 +517,7 @@ impl<'a> PathState<'a> {
         };
         let d_in = self.ray_d;
         let mut diff = shadow_derivative(settings, &mut self.adjoint);
-        let light = medium_emitter_sample(scene, mi, p, d_in, free, &mut diff, rng);
+        let light = medium_emitter_sample(scene, mi, p, d_in, clearance, &mut diff, rng);
         if let Some(MediumLight {
             value: x,
             d_log_tr,
@@ -526,12 +526,12 @@ impl<'a> PathState<'a> {
         {
             self.scatter_shadow(scene, settings, self.beta * x);
             self.result += self.beta * x;
-            self.d_result += x * match settings.gradient {
-                Gradient::AlbedoIgnoringNeeVertex(_) => flight.d_beta_before,
+            self.d_result += x * match settings.estimand {
+                Estimand::AlbedoDerivativeIgnoringNeeVertex(_) => flight.d_beta_before,
                 _ => self.d_beta,
             };
             // The shadow ray's ∂ ln T and the phase value's ∂ ln p / ∂g.
-            let d_log_tr = match settings.gradient.without_shadow_term() {
+            let d_log_tr = match settings.estimand.without_shadow_term() {
                 true => Vec3::ZERO,
                 false => d_log_tr,
             };
@@ -650,7 +650,7 @@ impl<'a> PathState<'a> {
                 self.scatter_shadow(scene, settings, self.beta * ls.value * w);
                 self.result += self.beta * ls.value * w;
                 self.d_result += self.d_beta * ls.value * w;
-                if settings.gradient.without_shadow_term() {
+                if settings.estimand.without_shadow_term() {
                     d_log_tr = Vec3::ZERO;
                 }
                 self.d_sigma_result += (self.d_sigma + self.beta * d_log_tr) * ls.value * w;

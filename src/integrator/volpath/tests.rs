@@ -306,7 +306,7 @@ fn an_emitter_seen_through_a_medium_is_counted_in_expectation() {
             let mut rng = Pcg32::new(11, k);
             let settings = PathSettings {
                 albedo: &albedo,
-                gradient: Gradient::None,
+                estimand: Estimand::RadianceOnly,
             };
             let l = sample(&scene, &settings, o, d, f32::INFINITY, &mut rng).radiance;
             assert!(

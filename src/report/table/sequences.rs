@@ -12,7 +12,7 @@ use super::{
     budget_seconds, budget_spp, default_options, orbit_about_centre, seconds_per_spp,
     sequence_options, spp_for, MethodImage, SceneRun, TableRun,
 };
-use crate::integrator::volpath::Gradient;
+use crate::integrator::volpath::Estimand;
 use crate::integrator::RenderOptions;
 use crate::regularize::pilot::{self, Pilot};
 use crate::regularize::sequence::CameraPath;
@@ -80,7 +80,7 @@ fn sequence_runs(
     let target_albedo = scene.media[medium as usize].albedo;
     let at_source = |factor: f32| {
         RenderOptions {
-            gradient: Gradient::Albedo(medium),
+            estimand: Estimand::AlbedoDerivative(medium),
             ..Default::default()
         }
         .with_albedo(scene, medium, target_albedo * factor)
@@ -92,7 +92,7 @@ fn sequence_runs(
         Some(_) => per_spp_gradient,
         None => ctx.calibrate(
             &RenderOptions {
-                gradient: Gradient::Difference {
+                estimand: Estimand::AlbedoDifference {
                     medium,
                     target: target_albedo,
                 },
@@ -262,7 +262,7 @@ fn decompose_scene(
     let terms = decompose::pilot_terms(pilot, w * h, n_eff);
     let seed = shot.seed.wrapping_add(6_000_000);
     let difference = RenderOptions {
-        gradient: Gradient::Difference { medium, target },
+        estimand: Estimand::AlbedoDifference { medium, target },
         ..Default::default()
     }
     .with_albedo(scene, medium, source);

@@ -23,7 +23,7 @@ use glam::{Vec3, Vec3A};
 use super::{Flight, PathState};
 use crate::integrator::volpath::run;
 use crate::integrator::volpath::{
-    AdjointDefect, AdjointParams, Gradient, PathSettings, ShadowDerivative,
+    AdjointDefect, AdjointParams, Estimand, PathSettings, ShadowDerivative,
 };
 use crate::medium::heterogeneous::HeterogeneousMedium;
 use crate::sampling::Pcg32;
@@ -105,8 +105,8 @@ pub(in crate::integrator::volpath) fn shadow_derivative<'r>(
     settings: &PathSettings,
     adjoint: &'r mut Option<&mut AdjointPath>,
 ) -> ShadowDerivative<'r> {
-    let params = match settings.gradient {
-        Gradient::Adjoint(a) if a.sigma_t && a.defect != Some(AdjointDefect::Transmittance) => {
+    let params = match settings.estimand {
+        Estimand::Adjoint(a) if a.sigma_t && a.defect != Some(AdjointDefect::Transmittance) => {
             Some(a)
         }
         _ => None,
@@ -119,9 +119,9 @@ pub(in crate::integrator::volpath) fn shadow_derivative<'r>(
         _ => None,
     };
     ShadowDerivative {
-        extinction: settings.gradient.extinction_medium(),
-        adjoint: match settings.gradient {
-            Gradient::Adjoint(a) => Some(a),
+        extinction: settings.estimand.extinction_medium(),
+        adjoint: match settings.estimand {
+            Estimand::Adjoint(a) => Some(a),
             _ => None,
         },
         record,
@@ -137,7 +137,7 @@ impl PathState<'_> {
         settings: &PathSettings,
         contribution: Vec3,
     ) {
-        let (Gradient::Adjoint(a), Some(adj)) = (settings.gradient, self.adjoint.as_deref_mut())
+        let (Estimand::Adjoint(a), Some(adj)) = (settings.estimand, self.adjoint.as_deref_mut())
         else {
             return;
         };
