@@ -57,13 +57,14 @@ use wide::CmpEq;
 
 use super::emitters::emission_met;
 use super::sample::PathSample;
+use super::volpath::PathSettings;
 use crate::geometry::RAY_EPSILON;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
 pub use lanes::WIDTH;
 use lanes::{lanes_of, mask_of, L, V3};
 use paths::PacketPaths;
-pub use scene::{PacketScene, PacketSettings, MAX_ABS_G};
+pub use scene::{PacketScene, MAX_ABS_G};
 use shapes::{medium_normal, surface_normal};
 
 /// Consecutive null-boundary crossings after which a path ends (volpath's limit).
@@ -79,7 +80,7 @@ struct MediumLanes {
     b: V3,
     g: L,
     /// The lanes in the medium whose extinction, and whose (Henyey–Greenstein) g, is
-    /// differentiated (`PacketSettings::extinction`, `g`).
+    /// differentiated (`Estimand::extinction_medium`, `g_medium`).
     chosen_sigma: L,
     chosen_g: L,
 }
@@ -90,21 +91,31 @@ struct MediumLanes {
 pub fn sample_packet(
     scene: &Scene,
     ps: &PacketScene,
-    settings: &PacketSettings,
+    settings: &PathSettings,
+    rays: &[(Vec3A, Vec3A, f32)],
+    rngs: &mut [Pcg32],
+    out: &mut [PathSample],
+) {
+    // A plain render runs the instance without derivatives (`PacketPaths`).
+    match settings.estimand.has_derivatives() {
+        true => sample_packet_in::<true>(scene, ps, settings, rays, rngs, out),
+        false => sample_packet_in::<false>(scene, ps, settings, rays, rngs, out),
+    }
+}
+
+/// [`sample_packet`] in the instance with derivative weights (`D`) or without.
+fn sample_packet_in<const D: bool>(
+    scene: &Scene,
+    ps: &PacketScene,
+    settings: &PathSettings,
     rays: &[(Vec3A, Vec3A, f32)],
     rngs: &mut [Pcg32],
     out: &mut [PathSample],
 ) {
     let n = rays.len();
     assert!(n <= WIDTH && rngs.len() == n && out.len() == n);
-    // A plain render runs the instance without derivatives (`PacketPaths`).
-    if settings.derivatives {
-        let paths = PacketPaths::<true>::new(ps, settings, rays, rngs);
-        paths.run((scene, ps), settings, rngs, out);
-    } else {
-        let paths = PacketPaths::<false>::new(ps, settings, rays, rngs);
-        paths.run((scene, ps), settings, rngs, out);
-    }
+    let paths = PacketPaths::<D>::new(ps, settings, rays, rngs);
+    paths.run((scene, ps), settings, rngs, out);
 }
 
 /// The emission the lanes of `mask` see on the surfaces `surface` they met at
@@ -202,7 +213,7 @@ fn surface_lanes(ps: &PacketScene, surface: L, p: V3, mask: L) -> (V3, V3) {
 /// medium's, unused).
 fn gather_media(
     ps: &PacketScene,
-    settings: &PacketSettings,
+    settings: &PathSettings,
     inside: L,
     mask: L,
     hero_of: &impl Fn(V3) -> L,
@@ -217,20 +228,28 @@ fn gather_media(
         }
     });
     let sigma = V3::from_fn(|k| ps.media[medium[k]].sigma_t);
+    let factors: [(Vec3, Vec3); WIDTH] = std::array::from_fn(|k| {
+        let m = medium[k];
+        settings
+            .estimand
+            .vertex_factors(m as u32, settings.albedo[m])
+    });
+    let (extinction, g) = (
+        settings.estimand.extinction_medium(),
+        settings.estimand.g_medium(),
+    );
     MediumLanes {
         sigma_hero: hero_of(sigma),
         sigma,
         albedo: V3::from_fn(|k| settings.albedo[medium[k]]),
-        a: V3::from_fn(|k| settings.factor_a[medium[k]]),
-        b: V3::from_fn(|k| settings.factor_b[medium[k]]),
+        a: V3::from_fn(|k| factors[k].0),
+        b: V3::from_fn(|k| factors[k].1),
         g: L::from(std::array::from_fn::<f32, WIDTH, _>(|k| {
             ps.media[medium[k]].g
         })),
-        chosen_sigma: mask_of(|k| {
-            bits >> k & 1 == 1 && settings.extinction == Some(medium[k] as u32)
-        }),
+        chosen_sigma: mask_of(|k| bits >> k & 1 == 1 && extinction == Some(medium[k] as u32)),
         chosen_g: mask_of(|k| {
-            bits >> k & 1 == 1 && settings.g == Some(medium[k] as u32) && ps.media[medium[k]].hg
+            bits >> k & 1 == 1 && g == Some(medium[k] as u32) && ps.media[medium[k]].hg
         }),
     }
 }

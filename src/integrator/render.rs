@@ -13,7 +13,7 @@ use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use super::packet::{self, PacketScene, PacketSettings};
+use super::packet::{self, PacketScene};
 use super::sample::PathSample;
 use super::volpath::PathSettings;
 use super::{direct, path, volpath};
@@ -139,7 +139,7 @@ impl PacketQueue {
         &mut self,
         scene: &Scene,
         ps: &PacketScene,
-        settings: &PacketSettings,
+        settings: &PathSettings,
         splat: &mut impl FnMut(Vec2, PathSample),
     ) {
         let n = self.rays.len();
@@ -297,7 +297,6 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
         estimand,
     };
     let packets = packet_scene(scene, shot, opts).ok();
-    let packet_settings = PacketSettings::new(&settings);
     let film = &shot.film;
     let (cw, ch) = film.crop_size;
     let (ox, oy) = film.crop_offset;
@@ -396,7 +395,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                                 Some(ps) => {
                                     queue.push(pos, (ray.o, ray.d, ray.tmax), rng);
                                     if queue.is_full() {
-                                        queue.run(scene, ps, &packet_settings, &mut splat);
+                                        queue.run(scene, ps, &settings, &mut splat);
                                     }
                                 }
                                 None => splat(pos, sample(ray.o, ray.d, ray.tmax, &mut rng)),
@@ -405,7 +404,7 @@ pub fn render(scene: &Scene, shot: &Shot, opts: &RenderOptions) -> Rendered {
                     }
                 }
                 if let Some(ps) = &packets {
-                    queue.run(scene, ps, &packet_settings, &mut splat);
+                    queue.run(scene, ps, &settings, &mut splat);
                 }
                 bar.inc((tw * th) as u64 * (s1 - s0) as u64);
                 Some(invalid)

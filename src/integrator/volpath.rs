@@ -319,7 +319,7 @@ impl Estimand {
     /// Whether the shadow rays' term of the extinction's derivative is left out (the
     /// power tests' wrong estimator).
     #[inline]
-    fn without_shadow_term(self) -> bool {
+    pub(crate) fn without_shadow_term(self) -> bool {
         matches!(self, Estimand::MediumDerivatives { params, .. } if params.without_shadow_term)
     }
 
@@ -330,6 +330,26 @@ impl Estimand {
             Estimand::MediumDerivatives { medium, params } if params.g => Some(medium),
             _ => None,
         }
+    }
+
+    /// Whether the render estimates any derivative or difference (dβ, dσ or dg).
+    #[inline]
+    pub fn has_derivatives(self) -> bool {
+        !matches!(self, Estimand::RadianceOnly)
+    }
+
+    /// Whether the paths are rouletted by the target's weight β_t = β + dβ instead of β
+    /// (the difference's: `PathState::survives` says why).
+    #[inline]
+    pub fn roulette_by_target(self) -> bool {
+        matches!(self, Estimand::AlbedoDifference { .. })
+    }
+
+    /// Whether a medium vertex's emitter sample is weighed by dβ without the vertex's
+    /// own albedo (the power tests' wrong derivative).
+    #[inline]
+    pub(crate) fn nee_ignores_vertex(self) -> bool {
+        matches!(self, Estimand::AlbedoDerivativeIgnoringNeeVertex(_))
     }
 
     /// Whether the render estimates the albedo's derivative (or the difference) into

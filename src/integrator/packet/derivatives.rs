@@ -10,7 +10,7 @@ use glam::Vec3;
 use wide::CmpEq;
 
 use super::lanes::{L, V3};
-use super::scene::PacketSettings;
+use crate::integrator::volpath::PathSettings;
 
 /// The derivative weights of a packet's paths and what they gathered; in the instance
 /// `D = false` (a render without derivatives) none is estimated, known at compile time.
@@ -27,11 +27,11 @@ pub(super) struct Derivatives<const D: bool> {
 }
 
 impl<const D: bool> Derivatives<D> {
-    pub(super) fn new(settings: &PacketSettings) -> Self {
+    pub(super) fn new(settings: &PathSettings) -> Self {
         let zero = V3::splat(Vec3::ZERO);
         Derivatives {
-            sigma_on: settings.extinction.is_some(),
-            g_on: settings.g.is_some(),
+            sigma_on: settings.estimand.extinction_medium().is_some(),
+            g_on: settings.estimand.g_medium().is_some(),
             d_sigma: zero,
             d_g: zero,
             sigma_result: zero,

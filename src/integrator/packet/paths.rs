@@ -13,11 +13,12 @@ use super::lanes::{mask_of, L, V3, WIDTH};
 use super::shapes::{shadow_transmittance, surface_hit, MediumSpan};
 use super::{
     dielectric_of, emitting, gather_media, medium_normals, offset_magnitude, surface_emission,
-    surface_lanes, MediumLanes, PacketScene, PacketSettings, MAX_NULL_CROSSINGS,
+    surface_lanes, MediumLanes, PacketScene, MAX_NULL_CROSSINGS,
 };
 use crate::geometry::to_world;
 use crate::integrator::roulette::continue_probability;
 use crate::integrator::sample::PathSample;
+use crate::integrator::volpath::PathSettings;
 use crate::medium::heterogeneous::HeterogeneousMedium;
 use crate::medium::phase::{direction_at, hg_eval, hg_log_derivative_g, hg_sample_angle};
 use crate::medium::{
@@ -31,7 +32,7 @@ use crate::scene::Scene;
 /// A shadow ray's ∂ ln T, or zero for the power tests' estimator without it.
 #[inline(always)]
 fn shadow_score(ctx: &Context, shadow: &Transmitted<L>) -> V3 {
-    match ctx.settings.without_shadow_term {
+    match ctx.settings.estimand.without_shadow_term() {
         true => V3::splat(Vec3::ZERO),
         false => shadow.d_log,
     }
@@ -44,7 +45,7 @@ const NONE: f32 = -1.0;
 pub(super) struct Context<'a> {
     pub(super) scene: &'a Scene,
     pub(super) ps: &'a PacketScene,
-    pub(super) settings: &'a PacketSettings,
+    pub(super) settings: &'a PathSettings<'a>,
     /// The scene's one medium where it is heterogeneous (`PacketScene::new` takes no
     /// other with it).
     het: Option<&'a HeterogeneousMedium>,
@@ -118,20 +119,22 @@ impl<'a> Context<'a> {
     pub(super) fn new<const D: bool>(
         scene: &'a Scene,
         ps: &'a PacketScene,
-        settings: &'a PacketSettings,
+        settings: &'a PathSettings<'a>,
         paths: &PacketPaths<D>,
     ) -> Self {
+        let estimand = settings.estimand;
         let single_medium = (ps.media.len() == 1).then(|| {
             let m = &ps.media[0];
+            let (a, b) = estimand.vertex_factors(0, settings.albedo[0]);
             MediumLanes {
                 sigma: V3::splat(m.sigma_t),
                 sigma_hero: paths.hero_of(V3::splat(m.sigma_t)),
                 albedo: V3::splat(settings.albedo[0]),
-                a: V3::splat(settings.factor_a[0]),
-                b: V3::splat(settings.factor_b[0]),
+                a: V3::splat(a),
+                b: V3::splat(b),
                 g: L::splat(m.g),
-                chosen_sigma: all_lanes(settings.extinction == Some(0)),
-                chosen_g: all_lanes(settings.g == Some(0) && m.hg),
+                chosen_sigma: all_lanes(estimand.extinction_medium() == Some(0)),
+                chosen_g: all_lanes(estimand.g_medium() == Some(0) && m.hg),
             }
         });
         Context {
@@ -149,7 +152,7 @@ impl<const D: bool> PacketPaths<D> {
     /// drawn first from its stream, as the scalar path draws it.
     pub(super) fn new(
         ps: &PacketScene,
-        settings: &PacketSettings,
+        settings: &PathSettings,
         rays: &[(Vec3A, Vec3A, f32)],
         rngs: &mut [Pcg32],
     ) -> Self {
@@ -197,7 +200,7 @@ impl<const D: bool> PacketPaths<D> {
     pub(super) fn run(
         mut self,
         (scene, ps): (&Scene, &PacketScene),
-        settings: &PacketSettings,
+        settings: &PathSettings,
         rngs: &mut [Pcg32],
         out: &mut [PathSample],
     ) {
@@ -279,7 +282,7 @@ impl<const D: bool> PacketPaths<D> {
         let played = self.alive & self.depth.cmp_gt(L::splat(ps.rr_depth as f32));
         if played.any() {
             let u = rngs.draw_1d(played);
-            let weight = if ctx.settings.roulette_by_target {
+            let weight = if ctx.settings.estimand.roulette_by_target() {
                 self.beta.add(self.d_beta)
             } else {
                 self.beta
@@ -560,7 +563,7 @@ impl<const D: bool> PacketPaths<D> {
                 let phase = hg_eval(m.g, cos);
                 let ray = (p, es.d, es.dist);
                 let from = (self.medium_shape, L::splat(NONE));
-                let extinction = ctx.settings.extinction;
+                let extinction = ctx.settings.estimand.extinction_medium();
                 let shadow =
                     shadow_transmittance(ctx.scene, ps, ray, from, es.some, extinction, rngs);
                 let x = es.value.mul(shadow.tr).scale(phase * es.weight(phase));
@@ -568,7 +571,7 @@ impl<const D: bool> PacketPaths<D> {
                     .result
                     .select(es.some, self.result.add(self.beta.mul(x)));
                 if D {
-                    let weight_of_x = if ctx.settings.nee_ignores_vertex {
+                    let weight_of_x = if ctx.settings.estimand.nee_ignores_vertex() {
                         d_beta_before
                     } else {
                         self.d_beta
@@ -741,7 +744,7 @@ impl<const D: bool> PacketPaths<D> {
             if lit.any() {
                 let ray = (self.o, es.d, es.dist);
                 let from = (self.medium_shape, hit_surface);
-                let extinction = ctx.settings.extinction;
+                let extinction = ctx.settings.estimand.extinction_medium();
                 let shadow = shadow_transmittance(ctx.scene, ps, ray, from, lit, extinction, rngs);
                 let pdf = cos_out * L::splat(std::f32::consts::FRAC_1_PI);
                 let f = rho.scale(pdf * es.weight(pdf));

@@ -4,7 +4,7 @@
 
 use super::tests::{
     box_and_area_light, box_rays, cloud, cloud_rays, fog_rays, glass_and_area_light, lit_rays,
-    lit_spheres, load_xml, packet_samples, rays, FOG, TWO_SPHERES,
+    lit_spheres, load_xml, packet_samples_in, rays, FOG, TWO_SPHERES,
 };
 use super::*;
 use crate::integrator::volpath::{Estimand, PathSettings};
@@ -27,19 +27,22 @@ fn zero_derivatives(s: &PathSample) -> bool {
 fn plain_samples(scene: &Scene, rays: &[Vec3A], derivatives: bool) -> Vec<PathSample> {
     let albedo: Vec<Vec3> = scene.media.iter().map(|m| m.albedo).collect();
     let ps = PacketScene::new(scene).expect("the packet takes the scene");
-    let mut settings = PacketSettings::new(&PathSettings {
+    let settings = PathSettings {
         albedo: &albedo,
         estimand: Estimand::RadianceOnly,
-    });
+    };
     assert!(
-        !settings.derivatives,
+        !settings.estimand.has_derivatives(),
         "a plain render estimates no derivative"
     );
-    settings.derivatives = derivatives;
-    rays.iter()
-        .enumerate()
-        .flat_map(|(i, &d)| packet_samples(scene, &ps, &settings, (d, 0.0), 7 + i as u64, N))
-        .collect()
+    let samples = |(i, &d): (usize, &Vec3A)| {
+        let ray = (d, 0.0);
+        match derivatives {
+            true => packet_samples_in::<true>(scene, &ps, &settings, ray, 7 + i as u64, N),
+            false => packet_samples_in::<false>(scene, &ps, &settings, ray, 7 + i as u64, N),
+        }
+    };
+    rays.iter().enumerate().flat_map(samples).collect()
 }
 
 /// Every scene kind of the comparison with the scalar paths (media behind null and

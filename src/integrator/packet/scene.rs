@@ -7,7 +7,6 @@ use crate::bsdf::Bsdf;
 use crate::emitter::Emitter;
 use crate::geometry::cuboid::Cuboid;
 use crate::geometry::shape::Geometry;
-use crate::integrator::volpath::{Estimand, PathSettings};
 use crate::medium::Phase;
 use crate::scene::ties::Ties;
 use crate::scene::{IntegratorKind, Scene};
@@ -400,60 +399,6 @@ fn clear_of(m: &MediumShape, s: &Surface) -> bool {
                 }
             };
             dist(c) >= extent * (1.0 - TOUCH_TOLERANCE)
-        }
-    }
-}
-
-/// A render's per-medium values: its albedo and the factors (a, b) by which a vertex
-/// there updates dβ (`Estimand::vertex_factors`); and which derivatives it estimates.
-#[derive(Clone, Debug)]
-pub struct PacketSettings {
-    pub albedo: Vec<Vec3>,
-    pub factor_a: Vec<Vec3>,
-    pub factor_b: Vec<Vec3>,
-    /// The difference's paths are rouletted by β + dβ (volpath's roulette).
-    pub roulette_by_target: bool,
-    /// The power tests' wrong derivative: a medium vertex's emitter sample weighed by
-    /// dβ without the vertex's own albedo (`Estimand::AlbedoDerivativeIgnoringNeeVertex`).
-    pub nee_ignores_vertex: bool,
-    /// The medium whose extinction (σ_t; a heterogeneous one's scale) and whose
-    /// Henyey–Greenstein g are differentiated, if any (`Estimand::MediumDerivatives`).
-    pub extinction: Option<u32>,
-    pub g: Option<u32>,
-    /// The power tests' wrong derivative: the shadow rays' ∂ ln T left out
-    /// (`Differentiated::without_shadow_term`).
-    pub without_shadow_term: bool,
-    /// Whether any derivative is estimated (dβ, dσ, dg): a plain render's paths carry
-    /// none (`PacketPaths`' instance without).
-    pub derivatives: bool,
-}
-
-impl PacketSettings {
-    pub fn new(settings: &PathSettings) -> PacketSettings {
-        let n = settings.albedo.len();
-        let (factor_a, factor_b) = (0..n)
-            .map(|m| {
-                settings
-                    .estimand
-                    .vertex_factors(m as u32, settings.albedo[m])
-            })
-            .unzip();
-        PacketSettings {
-            albedo: settings.albedo.to_vec(),
-            factor_a,
-            factor_b,
-            roulette_by_target: matches!(settings.estimand, Estimand::AlbedoDifference { .. }),
-            nee_ignores_vertex: matches!(
-                settings.estimand,
-                Estimand::AlbedoDerivativeIgnoringNeeVertex(_)
-            ),
-            extinction: settings.estimand.extinction_medium(),
-            g: settings.estimand.g_medium(),
-            without_shadow_term: matches!(
-                settings.estimand,
-                Estimand::MediumDerivatives { params, .. } if params.without_shadow_term
-            ),
-            derivatives: !matches!(settings.estimand, Estimand::RadianceOnly),
         }
     }
 }

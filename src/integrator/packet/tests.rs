@@ -305,7 +305,22 @@ fn scalar_samples(
 pub(super) fn packet_samples(
     scene: &Scene,
     ps: &PacketScene,
-    settings: &PacketSettings,
+    settings: &PathSettings,
+    ray: (Vec3A, f32),
+    seed: u64,
+    n: usize,
+) -> Vec<PathSample> {
+    match settings.estimand.has_derivatives() {
+        true => packet_samples_in::<true>(scene, ps, settings, ray, seed, n),
+        false => packet_samples_in::<false>(scene, ps, settings, ray, seed, n),
+    }
+}
+
+/// [`packet_samples`] in the instance with derivative weights (`D`) or without.
+pub(super) fn packet_samples_in<const D: bool>(
+    scene: &Scene,
+    ps: &PacketScene,
+    settings: &PathSettings,
     (d, jitter): (Vec3A, f32),
     seed: u64,
     n: usize,
@@ -321,7 +336,7 @@ pub(super) fn packet_samples(
         let mut rngs: Vec<Pcg32> = (0..chunk.len())
             .map(|k| Pcg32::new(seed, (j * WIDTH + k) as u64))
             .collect();
-        sample_packet(scene, ps, settings, &rays, &mut rngs, chunk);
+        sample_packet_in::<D>(scene, ps, settings, &rays, &mut rngs, chunk);
     }
     out
 }
@@ -374,10 +389,10 @@ fn largest_z_over(
     };
     let ps = PacketScene::new(packet_scene).expect("the packet takes the scene");
     let packet_albedo = packet_albedo.unwrap_or_else(|| albedo.clone());
-    let packet_settings = PacketSettings::new(&PathSettings {
+    let packet_settings = PathSettings {
         albedo: &packet_albedo,
         estimand,
-    });
+    };
     let mut worst = 0f32;
     for &d in rays {
         let a = moments(&scalar_samples(scene, &settings, (d, jitter), seed, n));
@@ -705,10 +720,10 @@ fn a_white_furnace_gives_back_the_sky() {
         .replace("$res", "4"),
     );
     let ps = PacketScene::new(&scene).expect("the furnace is a packet scene");
-    let settings = PacketSettings::new(&PathSettings {
+    let settings = PathSettings {
         albedo: &[Vec3::ONE],
         estimand: Estimand::RadianceOnly,
-    });
+    };
     let d = Vec3A::new(0.05, -0.1, -1.0).normalize();
     let samples = packet_samples(&scene, &ps, &settings, (d, 0.0), 7, N);
     let m = moments(&samples);

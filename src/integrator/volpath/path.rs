@@ -203,9 +203,9 @@ impl<'a> PathState<'a> {
             // (≥ β): by β, long paths, which weigh (α_t/α)^k more at the target, would
             // end early and their survivors' 1/q give D a heavy tail; by β_t, |dβ|/q stays
             // bounded, and q is the same at every source albedo.
-            let roulette_weight = match settings.estimand {
-                Estimand::AlbedoDifference { .. } => self.beta + self.d_beta,
-                _ => self.beta,
+            let roulette_weight = match settings.estimand.roulette_by_target() {
+                true => self.beta + self.d_beta,
+                false => self.beta,
             };
             let q = continue_probability(roulette_weight.into(), self.d_beta.into(), self.eta);
             if q.is_nan() || u_rr >= q {
