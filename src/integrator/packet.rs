@@ -259,4 +259,6 @@ mod kernel_tests;
 #[cfg(test)]
 mod plain_tests;
 #[cfg(test)]
+mod test_scenes;
+#[cfg(test)]
 mod tests;

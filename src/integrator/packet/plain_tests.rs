@@ -2,10 +2,11 @@
 //! (`PacketPaths<false>`): the same radiance as the instance with them, bit for bit, and
 //! no derivative samples.
 
-use super::tests::{
+use super::test_scenes::{
     box_and_area_light, box_rays, cloud, cloud_rays, fog_rays, glass_and_area_light, lit_rays,
-    lit_spheres, load_xml, packet_samples_in, rays, FOG, TWO_SPHERES,
+    lit_spheres, load_xml, rays, FOG, TWO_SPHERES,
 };
+use super::tests::packet_samples_in;
 use super::*;
 use crate::integrator::volpath::{Estimand, PathSettings};
 
