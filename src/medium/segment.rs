@@ -133,24 +133,15 @@ impl Tracked for f32x8 {
         (tmin, tmax): (f32x8, f32x8),
         mask: f32x8,
     ) -> Vector3<f32x8> {
-        let lane = |v: &Vector3<f32x8>, k: usize| {
-            Vector3::new(
-                v.x.as_array_ref()[k],
-                v.y.as_array_ref()[k],
-                v.z.as_array_ref()[k],
-            )
-        };
         let (t0, t1) = (tmin.to_array(), tmax.to_array());
         let bits = mask.move_mask();
-        let out: [Vector3<f32>; 8] = std::array::from_fn(|k| match bits >> k & 1 {
-            1 => f32::depth_estimate(h, lane(&o, k), lane(&d, k), (t0[k], t1[k]), true),
-            _ => Vector3::all(0.0),
-        });
-        Vector3::new(
-            f32x8::from(out.map(|v| v.x)),
-            f32x8::from(out.map(|v| v.y)),
-            f32x8::from(out.map(|v| v.z)),
-        )
+        Vector3::from_fn(|k| match bits >> k & 1 {
+            1 => {
+                let (o, d) = (o.lane(k).into(), d.lane(k).into());
+                f32::depth_estimate(h, o, d, (t0[k], t1[k]), true).into()
+            }
+            _ => glam::Vec3::ZERO,
+        })
     }
 }
 

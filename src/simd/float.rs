@@ -337,6 +337,34 @@ impl<F: Float> Vector3<F> {
     }
 }
 
+impl Vector3<f32x8> {
+    /// Lane k from `f(k)`.
+    #[inline(always)]
+    pub fn from_fn(f: impl Fn(usize) -> glam::Vec3) -> Self {
+        let v: [glam::Vec3; 8] = std::array::from_fn(f);
+        Vector3 {
+            x: f32x8::from(std::array::from_fn::<f32, 8, _>(|k| v[k].x)),
+            y: f32x8::from(std::array::from_fn::<f32, 8, _>(|k| v[k].y)),
+            z: f32x8::from(std::array::from_fn::<f32, 8, _>(|k| v[k].z)),
+        }
+    }
+
+    /// Lane k.
+    #[inline(always)]
+    pub fn lane(&self, k: usize) -> glam::Vec3 {
+        glam::Vec3::new(
+            self.x.as_array_ref()[k],
+            self.y.as_array_ref()[k],
+            self.z.as_array_ref()[k],
+        )
+    }
+
+    #[inline(always)]
+    pub fn lane_a(&self, k: usize) -> glam::Vec3A {
+        glam::Vec3A::from(self.lane(k))
+    }
+}
+
 impl From<glam::Vec3A> for Vector3<f32> {
     #[inline(always)]
     fn from(v: glam::Vec3A) -> Self {

@@ -2,7 +2,6 @@
 //! them (a position, a direction or an RGB value per path) and masks (all bits
 //! set in a lane that is on); the lanes draw by `sampling::Sampler`.
 
-use glam::{Vec3, Vec3A};
 use wide::f32x8;
 
 use crate::simd::Vector3;
@@ -13,36 +12,9 @@ pub const WIDTH: usize = 8;
 /// One f32 per path.
 pub type L = f32x8;
 
-/// A vector (or an RGB value) per path: `simd::Vector3` over the lanes, with the
-/// packet's ways in and out of lanes.
+/// A vector (or an RGB value) per path: `simd::Vector3` over the lanes (`from_fn`,
+/// `lane`: its ways in and out of them).
 pub type V3 = Vector3<L>;
-
-impl Vector3<L> {
-    /// Lane k from `f(k)`.
-    #[inline(always)]
-    pub fn from_fn(f: impl Fn(usize) -> Vec3) -> V3 {
-        let v: [Vec3; WIDTH] = std::array::from_fn(f);
-        V3 {
-            x: L::from(std::array::from_fn::<f32, WIDTH, _>(|k| v[k].x)),
-            y: L::from(std::array::from_fn::<f32, WIDTH, _>(|k| v[k].y)),
-            z: L::from(std::array::from_fn::<f32, WIDTH, _>(|k| v[k].z)),
-        }
-    }
-
-    #[inline(always)]
-    pub fn lane(&self, k: usize) -> Vec3 {
-        Vec3::new(
-            self.x.as_array_ref()[k],
-            self.y.as_array_ref()[k],
-            self.z.as_array_ref()[k],
-        )
-    }
-
-    #[inline(always)]
-    pub fn lane_a(&self, k: usize) -> Vec3A {
-        Vec3A::from(self.lane(k))
-    }
-}
 
 /// The lanes where bit k of `bits` is set.
 #[inline(always)]

@@ -526,9 +526,9 @@ impl<'a> PathState<'a> {
         {
             self.scatter_shadow(scene, settings, self.beta * x);
             self.result += self.beta * x;
-            self.d_result += x * match settings.estimand {
-                Estimand::AlbedoDerivativeIgnoringNeeVertex(_) => flight.d_beta_before,
-                _ => self.d_beta,
+            self.d_result += x * match settings.estimand.nee_ignores_vertex() {
+                true => flight.d_beta_before,
+                false => self.d_beta,
             };
             // The shadow ray's ∂ ln T and the phase value's ∂ ln p / ∂g.
             let d_log_tr = match settings.estimand.without_shadow_term() {

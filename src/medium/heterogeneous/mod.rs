@@ -34,7 +34,9 @@ use super::grid::Volume;
 use super::lookup_bounds::LookupBounds;
 use super::majorant::{self, MajorantGrid};
 use super::tracking::{sample_t_maj, MajorantSegment, MajorantSegments, MajorantWalk, OneSegment};
-use crate::sampling::{Pcg32, Sampler};
+#[cfg(test)]
+use crate::sampling::Pcg32;
+use crate::sampling::Sampler;
 use crate::simd::{Float, Gather, Vector3};
 
 /// Grids of more values than this get lookup bounds: the bounds save reads that miss the
@@ -306,7 +308,8 @@ impl HeterogeneousMedium {
     }
 
     /// Ratio tracking: an unbiased estimate of `exp(−∫₀^dist σ_t)` from `o` along `d`,
-    /// on one path.
+    /// on one path, for tests (renders call `Medium::segment_transmittance`).
+    #[cfg(test)]
     pub fn transmittance(&self, o: Vec3A, d: Vec3A, dist: f32, rng: &mut Pcg32) -> Vec3 {
         let segments = self.majorant_segments(o, d, (0.0, dist));
         self.ratio_tracking(o.into(), d.into(), segments, true, rng)
