@@ -200,7 +200,7 @@ fn transmittance_image(scene: &Scene, n: usize) -> (Vec<f64>, f64) {
             }
             let Some(h) = hit else { break };
             medium = d.dot(h.n) < 0.0;
-            let o2 = mediareg::geometry::offset_point(h.p, h.n, d, scene.offset_scale);
+            let o2 = h.offset_p(d, scene.offset_scale);
             tmax -= (o2 - o).length();
             o = o2;
         }

@@ -6,8 +6,9 @@ use glam::{Vec3, Vec3A};
 use super::fresnel::{fresnel, reflect, refract};
 use super::microfacet::Microfacet;
 use super::BsdfSample;
+use crate::simd::{Float, Vector3};
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Copy, Debug)]
 pub struct Dielectric {
     /// int_ior / ext_ior
     pub eta: f32,
@@ -50,36 +51,56 @@ pub fn named_ior(name: &str) -> Option<f32> {
 
 impl Dielectric {
     pub fn sample(&self, wi: Vec3A, s1: f32) -> Option<BsdfSample> {
-        let (r, cos_theta_t, eta_it, eta_ti) = fresnel(wi.z, self.eta);
-        let reflect = s1 <= r;
-        let (wo, pdf, weight, eta) = if reflect {
-            (
-                Vec3A::new(-wi.x, -wi.y, wi.z),
-                r,
-                self.specular_reflectance,
-                1.0,
-            )
-        } else {
-            let wo = Vec3A::new(-eta_ti * wi.x, -eta_ti * wi.y, cos_theta_t);
-            // Radiance is scaled by η_ti² for the solid-angle compression (TransportMode::Radiance).
-            (
-                wo,
-                1.0 - r,
-                self.specular_transmittance * (eta_ti * eta_ti),
-                eta_it,
-            )
-        };
-        if pdf <= 0.0 {
-            return None;
-        }
-        Some(BsdfSample {
-            wo,
-            pdf,
-            weight,
-            eta,
+        let sides = (
+            self.specular_reflectance.into(),
+            self.specular_transmittance.into(),
+        );
+        let s = sample_smooth(self.eta, sides, wi.into(), s1);
+        (s.pdf > 0.0).then(|| BsdfSample {
+            wo: s.wo.into(),
+            pdf: s.pdf,
+            weight: s.weight.into(),
+            eta: s.eta,
             delta: true,
             null: false,
         })
+    }
+}
+
+/// A smooth dielectric's sample in its local frame (z the normal), for a path or lanes.
+pub struct SmoothSample<F: Float> {
+    pub wo: Vector3<F>,
+    /// The lobe's probability (0: none).
+    pub pdf: F,
+    /// `f · |cos θ_o| / pdf`.
+    pub weight: Vector3<F>,
+    /// The relative index crossed (1 for reflection).
+    pub eta: F,
+}
+
+/// Mitsuba's smooth `dielectric` sample of relative index `eta` (int_ior / ext_ior)
+/// with its specular (reflectance, transmittance), light leaving along `wi`, lobe draw
+/// `s1`: mirror reflection with Fresnel's probability R (`fresnel`), weight ρ_s; else
+/// refraction, weight τ_s η_ti², the solid angle's compression in radiance transport.
+/// One definition for a path and for lanes of paths.
+#[inline(always)]
+pub fn sample_smooth<F: Float>(
+    eta: F,
+    (reflectance, transmittance): (Vector3<F>, Vector3<F>),
+    wi: Vector3<F>,
+    s1: F,
+) -> SmoothSample<F> {
+    let (r, cos_theta_t, eta_it, eta_ti) = fresnel(wi.z, eta);
+    let reflect = s1.le(r);
+    let mirrored = Vector3::new(wi.x.negate(), wi.y.negate(), wi.z);
+    let refracted = Vector3::new(eta_ti.negate() * wi.x, eta_ti.negate() * wi.y, cos_theta_t);
+    SmoothSample {
+        wo: refracted.select(reflect, mirrored),
+        pdf: F::select(reflect, r, F::one() - r),
+        weight: transmittance
+            .scale(eta_ti * eta_ti)
+            .select(reflect, reflectance),
+        eta: F::select(reflect, F::one(), eta_it),
     }
 }
 

@@ -4,6 +4,7 @@
 //! `sample_direction` returns, for a reference point, a direction toward the light, the
 //! distance to travel, the solid-angle pdf (1 for Dirac lights) and `Le / pdf`.
 
+pub mod direction;
 pub mod envmap;
 pub mod selection;
 
@@ -13,6 +14,7 @@ use glam::{Mat3A, Vec2, Vec3, Vec3A};
 
 use crate::geometry::shape::Geometry;
 use crate::sampling::warp::square_to_uniform_sphere;
+use crate::simd::Vector3;
 
 #[derive(Clone, Debug)]
 pub enum Emitter {
@@ -120,49 +122,31 @@ impl Emitter {
         match self {
             Emitter::Area { shape, radiance } => {
                 let g = &shapes[*shape as usize];
+                let p_ref3 = Vector3::from(p_ref);
                 // Spheres seen from outside: sample the cone of the visible cap.
                 if let Geometry::Sphere(sp) = g {
-                    if let Some(c) = sp.sample_cone(p_ref, s) {
-                        let n = if sp.flip_normals { -c.n } else { c.n };
-                        if c.dist.is_nan()
-                            || c.dist <= 0.0
-                            || n.dot(c.d) >= 0.0
-                            || !c.pdf.is_finite()
-                        {
-                            return None;
-                        }
-                        return Some(EmitterSample {
-                            d: c.d,
-                            p: c.p,
+                    let sphere = (Vec3::from(sp.center), sp.radius, sp.flip_normals);
+                    let (c, inside) =
+                        direction::toward_sphere(sphere, *radiance, p_ref3, (s.x, s.y));
+                    if !inside {
+                        let d = Vec3A::from(c.d);
+                        return c.valid.then(|| EmitterSample {
+                            d,
+                            p: p_ref + d * c.dist,
                             pdf: c.pdf,
-                            weight: *radiance / c.pdf,
+                            weight: c.weight.into(),
                             delta: false,
                         });
                     }
                 }
                 let (p, n) = g.sample_position(s);
-                let v = p - p_ref;
-                let dist2 = v.length_squared();
-                let dist = dist2.sqrt();
-                if dist == 0.0 {
-                    return None;
-                }
-                let d = v / dist;
-                let cos = n.dot(d);
-                // One-sided: the light must face the reference point.
-                if cos >= 0.0 {
-                    return None;
-                }
-                // pdf_ω = pdf_A · r² / |cos θ_light|
-                let pdf = dist2 / (g.area() * -cos);
-                if !pdf.is_finite() || pdf <= 0.0 {
-                    return None;
-                }
-                Some(EmitterSample {
-                    d,
+                let a =
+                    direction::toward_area_point((p.into(), n.into()), g.area(), *radiance, p_ref3);
+                a.valid.then(|| EmitterSample {
+                    d: a.d.into(),
                     p,
-                    pdf,
-                    weight: *radiance / pdf,
+                    pdf: a.pdf,
+                    weight: a.weight.into(),
                     delta: false,
                 })
             }
@@ -170,16 +154,12 @@ impl Emitter {
                 position,
                 intensity,
             } => {
-                let v = *position - p_ref;
-                let dist2 = v.length_squared();
-                if dist2 == 0.0 {
-                    return None;
-                }
-                Some(EmitterSample {
-                    d: v / dist2.sqrt(),
+                let a = direction::toward_point((*position).into(), *intensity, p_ref.into());
+                a.valid.then(|| EmitterSample {
+                    d: a.d.into(),
                     p: *position,
-                    pdf: 1.0,
-                    weight: *intensity / dist2,
+                    pdf: a.pdf,
+                    weight: a.weight.into(),
                     delta: true,
                 })
             }
@@ -225,12 +205,15 @@ impl Emitter {
                 direction,
                 irradiance,
             } => {
-                let r = bsphere.radius.max((p_ref - bsphere.center).length());
+                let bounds = (Vec3::from(bsphere.center), bsphere.radius);
+                let toward = -Vec3::from(*direction);
+                let a = direction::along_direction(toward, *irradiance, bounds, p_ref.into());
+                let d = Vec3A::from(a.d);
                 Some(EmitterSample {
-                    d: -*direction,
-                    p: p_ref - *direction * (2.0 * r),
-                    pdf: 1.0,
-                    weight: *irradiance,
+                    d,
+                    p: p_ref + d * a.dist,
+                    pdf: a.pdf,
+                    weight: a.weight.into(),
                     delta: true,
                 })
             }

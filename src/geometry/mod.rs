@@ -46,16 +46,23 @@ impl Ray {
 /// ray skips that much of it on entering. The scene passes its own size
 /// ([`crate::scene::Scene::offset_scale`]), so a scene scaled by s (and σ_t by 1/s)
 /// renders the same image; for a unit-sized scene it is Mitsuba's offset.
-pub fn offset_point(p: Vec3A, n: Vec3A, d: Vec3A, scale: f32) -> Vec3A {
+///
+/// One definition for a path (`Vec3A`, as glam rounds it) and for lanes of paths.
+#[inline(always)]
+pub fn offset_point<F: Float>(
+    p: Vector3<F>,
+    n: Vector3<F>,
+    d: Vector3<F>,
+    scale: f32,
+) -> Vector3<F> {
     let mag = offset_magnitude(p, scale);
-    let mag = if n.dot(d) >= 0.0 { mag } else { -mag };
-    p + n * mag
+    p.add(n.scale(F::select(n.dot(d).ge(F::zero()), mag, mag.negate())))
 }
 
 /// How far [`offset_point`] moves `p` off its surface.
-#[inline]
-pub fn offset_magnitude(p: Vec3A, scale: f32) -> f32 {
-    (scale + p.abs().max_element()) * RAY_EPSILON
+#[inline(always)]
+pub fn offset_magnitude<F: Float>(p: Vector3<F>, scale: f32) -> F {
+    (F::of(scale as f64) + p.abs().max_element()) * F::of(RAY_EPSILON as f64)
 }
 
 /// An orthonormal frame around `n` (Duff et al. 2017, as Mitsuba's `coordinate_system`).

@@ -1,7 +1,7 @@
 //! Mitsuba's built-in analytic shapes (`sphere`, `rectangle`, `disk`) and the shape enum
 //! the renderer works with. `cube` is a triangle mesh, as in Mitsuba 3.
 
-use glam::{Mat3A, Mat4, Vec2, Vec3A};
+use glam::{Mat3A, Mat4, Vec2, Vec3A, Vec4};
 
 use super::mesh::TriangleMesh;
 use super::Bounds;
@@ -86,13 +86,23 @@ impl Planar {
     }
 
     pub fn sample_position(&self, s: Vec2) -> Vec3A {
-        let local = if self.is_disk {
-            let (x, y) = square_to_uniform_disk_concentric(s);
-            Vec3A::new(x, y, 0.0)
-        } else {
-            Vec3A::new(2.0 * s.x - 1.0, 2.0 * s.y - 1.0, 0.0)
-        };
-        self.to_world.transform_point3a(local)
+        if !self.is_disk {
+            return self.rectangle_point(s.x, s.y).into();
+        }
+        let (x, y) = square_to_uniform_disk_concentric(s);
+        self.to_world.transform_point3a(Vec3A::new(x, y, 0.0))
+    }
+
+    /// A rectangle's point at (2u₁ − 1, 2u₂ − 1) of its [-1, 1]² (uniform by area for
+    /// uniform draws), for a path or lanes: `to_world` applied as glam applies it.
+    #[inline(always)]
+    pub fn rectangle_point<F: Float>(&self, u1: F, u2: F) -> Vector3<F> {
+        let (two, one) = (F::of(2.0), F::one());
+        let (x, y) = (two * u1 - one, two * u2 - one);
+        // The local z = 0 drops the third column (its product is a signed zero).
+        let row = |r: Vec4| F::of(r.x as f64) * x + F::of(r.y as f64) * y + F::of(r.w as f64);
+        let m = &self.to_world;
+        Vector3::new(row(m.row(0)), row(m.row(1)), row(m.row(2)))
     }
 
     pub fn bounds(&self) -> Bounds {
@@ -102,20 +112,6 @@ impl Planar {
         }
         b
     }
-}
-
-/// A direction toward a sphere from [`Sphere::sample_cone`].
-#[derive(Clone, Copy, Debug)]
-pub struct ConeSample {
-    /// Unit direction from the reference point.
-    pub d: Vec3A,
-    /// Distance to the point it meets the sphere at.
-    pub dist: f32,
-    pub p: Vec3A,
-    /// Outward unit normal there (before `flip_normals`).
-    pub n: Vec3A,
-    /// Solid-angle pdf.
-    pub pdf: f32,
 }
 
 /// Uniform pdf over a cone of half-angle θ_max.
@@ -270,27 +266,7 @@ impl Sphere {
         4.0 * std::f32::consts::PI * self.radius * self.radius
     }
 
-    /// Mitsuba's `Sphere::sample_direction` from outside: a direction uniform in the cone
-    /// of the visible cap (pdf `1 / (2π (1 − cos θ_max))`), and the point it hits
-    /// ([`sample_sphere_cone`]). Returns the sample, or `None` from inside.
-    #[inline]
-    pub fn sample_cone(&self, p_ref: Vec3A, s: Vec2) -> Option<ConeSample> {
-        let c = sample_sphere_cone(self.center.into(), self.radius, p_ref.into(), s.x, s.y);
-        if c.inside {
-            return None;
-        }
-        let d = Vec3A::from(c.d);
-        let p = p_ref + d * c.dist;
-        Some(ConeSample {
-            d,
-            dist: c.dist,
-            p,
-            n: (p - self.center).normalize(),
-            pdf: c.pdf,
-        })
-    }
-
-    /// The pdf `sample_cone` gives any direction toward the sphere from `p_ref`, or `None`
+    /// The pdf [`sample_sphere_cone`] gives any direction toward the sphere from `p_ref`, or `None`
     /// from inside.
     pub fn cone_pdf(&self, p_ref: Vec3A) -> Option<f32> {
         let cone = visible_cone(Vector3::from(self.center - p_ref), self.radius);
@@ -369,12 +345,19 @@ mod tests {
             for i in 0..n {
                 for j in 0..n {
                     let s = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
-                    let c = sp.sample_cone(p_ref, s).unwrap();
-                    let (p, nrm, pdf, d) = (c.p, c.n, c.pdf, c.d);
+                    let c = sample_sphere_cone::<f32>(
+                        sp.center.into(),
+                        sp.radius,
+                        p_ref.into(),
+                        s.x,
+                        s.y,
+                    );
+                    assert!(!c.inside);
+                    let (pdf, d) = (c.pdf, Vec3A::from(c.d));
+                    let p = p_ref + d * c.dist;
+                    let nrm = (p - sp.center).normalize();
                     assert!((d.length() - 1.0).abs() < 1e-5, "a unit direction");
-                    assert!((p - p_ref - d * c.dist).length() < 1e-5 * c.dist);
                     assert!(((p - sp.center).length() - sp.radius).abs() < 1e-5);
-                    assert!((nrm.length() - 1.0).abs() < 1e-5);
                     let t = sp
                         .intersect(p_ref, d, f32::MAX)
                         .expect("the sample must hit");

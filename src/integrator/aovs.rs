@@ -13,11 +13,10 @@
 //! - nothing (the environment) or an emitter's surface: albedo 0 and normal 0: the
 //!   light there is directly seen emission, which `denoise` keeps out of the filter.
 
+use crate::denoise::AuxImages;
 use glam::{Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
 
-use crate::denoise::AuxImages;
-use crate::geometry::offset_point;
 use crate::image::Image;
 use crate::sampling::{Pcg32, PixelSamples};
 use crate::scene::shot::Shot;
@@ -111,7 +110,7 @@ fn first_seen(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         let s2 = rng.next_2d();
         match bsdf.sample(wi, s1, s2, h.uv) {
             Some(bs) if bs.null => {
-                o = offset_point(h.p, h.n, d, scene.offset_scale);
+                o = h.offset_p(d, scene.offset_scale);
                 tmax = f32::INFINITY;
             }
             Some(bs) => {

@@ -18,7 +18,6 @@ use glam::{Vec3, Vec3A};
 
 use super::emitters::sample_light_at_surface;
 use super::sample::PathSample;
-use crate::geometry::offset_point;
 use crate::sampling::mis_weight;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
@@ -90,7 +89,7 @@ pub fn sample(
             continue;
         }
         let wo = h.sh_frame.to_world(bs.wo);
-        let hit = scene.intersect(offset_point(h.p, h.n, wo, scene.offset_scale), wo, f32::MAX);
+        let hit = scene.intersect(h.offset_p(wo, scene.offset_scale), wo, f32::MAX);
         let emitter = match &hit {
             Some(g) => scene.shapes[g.shape as usize].emitter,
             None => scene.environment,

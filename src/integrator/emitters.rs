@@ -5,7 +5,7 @@
 
 use glam::{Vec2, Vec3, Vec3A};
 
-use crate::geometry::{offset_point, SHADOW_EPSILON};
+use crate::geometry::SHADOW_EPSILON;
 use crate::sampling::mis_weight;
 use crate::scene::{Scene, SurfaceInteraction};
 
@@ -43,7 +43,7 @@ pub(crate) fn sample_light_at_surface(
         return None;
     }
     // Shadow ray: spawn_ray_to(p), shortened by ShadowEpsilon.
-    let so = offset_point(h.p, h.n, es.d, scene.offset_scale);
+    let so = h.offset_p(es.d, scene.offset_scale);
     let v = es.p - so;
     let dist = v.length();
     if dist <= 0.0 {
@@ -97,7 +97,7 @@ pub(crate) fn skip_emitters(
         if scene.shapes[si.shape as usize].emitter.is_none() {
             return Some(si);
         }
-        let o2 = offset_point(si.p, si.n, d, scene.offset_scale);
+        let o2 = si.offset_p(d, scene.offset_scale);
         tmax -= (o2 - o).length();
         o = o2;
     }

@@ -39,8 +39,9 @@
 //! * Henyey–Greenstein sampling is `medium::phase`'s kernel in f32 where the scalar
 //!   path runs it in f64 (the packet takes |g| ≤ [`MAX_ABS_G`] only).
 //!
-//! The physics is not written here: every kernel (phase, Fresnel, MIS, roulette, the
-//! hero channel's weights, cosine and cone sampling, flights, transmittance, tracking
+//! The physics is not written here: every kernel (phase, Fresnel, the smooth
+//! dielectric's sample, MIS, roulette, the hero channel's weights, cosine and cone
+//! sampling, the emitters' directions, the spawn offset, flights, transmittance, tracking
 //! steps) is the scalar path's, written once over `simd::Float` and run in lanes
 //! (`kernel_tests` holds each lane to the scalar result).
 
@@ -58,7 +59,6 @@ use wide::CmpEq;
 use super::emitters::emission_met;
 use super::sample::PathSample;
 use super::volpath::PathSettings;
-use crate::geometry::RAY_EPSILON;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
 pub use lanes::WIDTH;
@@ -161,13 +161,6 @@ fn medium_normals(ps: &PacketScene, shape: L, p: V3, mask: L) -> V3 {
         }
     }
     n
-}
-
-/// How far a ray spawned at `p` starts off its surface: `geometry::offset_magnitude`
-/// in lanes, `(scale + max|p_i|) · RayEpsilon`.
-#[inline(always)]
-fn offset_magnitude(ps: &PacketScene, p: V3) -> L {
-    (L::splat(ps.offset_scale) + p.abs().max_element()) * L::splat(RAY_EPSILON)
 }
 
 /// The lanes whose medium `shape` (indices as f32) has a dielectric boundary.

@@ -11,7 +11,6 @@ use glam::{Vec3, Vec3A};
 use super::emitters::{sample_light_at_surface, skip_emitters};
 use super::roulette::continue_probability;
 use super::sample::PathSample;
-use crate::geometry::offset_point;
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
 use crate::simd::Vector3;
@@ -133,7 +132,7 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
         if tmax_c == 0.0 {
             break;
         }
-        let o2 = offset_point(h.p, h.n, wo_world, scene.offset_scale);
+        let o2 = h.offset_p(wo_world, scene.offset_scale);
         ray_d = wo_world;
         si = scene.intersect(o2, ray_d, f32::MAX);
     }

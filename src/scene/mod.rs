@@ -20,7 +20,7 @@ use crate::geometry::accel::{Accel, CrossingList, Crossings, Hit, ShadowPass};
 use crate::geometry::clearance::Clearance;
 use crate::geometry::convex::ConvexBoundary;
 use crate::geometry::shape::Geometry;
-use crate::geometry::Frame;
+use crate::geometry::{offset_point, Frame};
 use crate::medium::Medium;
 use ray_log::RayLog;
 use shot::Shot;
@@ -131,6 +131,16 @@ pub struct SurfaceInteraction {
     /// Texture coordinates (meshes and rectangles; 0 on other shapes).
     pub uv: Vec2,
     pub shape: u32,
+}
+
+impl SurfaceInteraction {
+    /// Where a ray leaving along `d` starts: off the surface to `d`'s side by the spawn
+    /// offset of a scene whose size is `offset_scale` (Mitsuba's `offset_p`,
+    /// [`crate::geometry::offset_point`]).
+    #[inline]
+    pub fn offset_p(&self, d: Vec3A, offset_scale: f32) -> Vec3A {
+        offset_point(self.p.into(), self.n.into(), d.into(), offset_scale).into()
+    }
 }
 
 impl Scene {

@@ -27,7 +27,7 @@ use crate::geometry::{offset_magnitude, Bounds};
 /// twice the offset a spawned ray takes ([`crate::geometry::offset_point`]), the
 /// distance below which spawning cannot tell the two apart.
 pub fn tie_distance(p: Vec3A, offset_scale: f32) -> f32 {
-    2.0 * offset_magnitude(p, offset_scale)
+    2.0 * offset_magnitude(p.into(), offset_scale)
 }
 
 /// Whether shape `i` is a medium boundary that light passes (a `null` BSDF with an

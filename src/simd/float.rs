@@ -46,6 +46,8 @@ pub trait Float:
     fn select(m: Self::Mask, t: Self, f: Self) -> Self;
     /// Whether `m` holds on any path (a loop over lanes goes on while one is live).
     fn any(m: Self::Mask) -> bool;
+    /// `b` on every path.
+    fn mask(b: bool) -> Self::Mask;
 
     #[inline(always)]
     fn zero() -> Self {
@@ -139,6 +141,10 @@ macro_rules! scalar {
             fn any(m: bool) -> bool {
                 m
             }
+            #[inline(always)]
+            fn mask(b: bool) -> bool {
+                b
+            }
         }
     };
 }
@@ -219,6 +225,11 @@ impl Float for f32x8 {
     #[inline(always)]
     fn any(m: Self) -> bool {
         m.any()
+    }
+    #[inline(always)]
+    fn mask(b: bool) -> Self {
+        // A lane mask is all bits set where true.
+        f32x8::splat(f32::from_bits(if b { u32::MAX } else { 0 }))
     }
 }
 

@@ -106,7 +106,7 @@ pub(super) fn rays(g: &[Geometry], accel: &Accel, n: usize) -> Vec<(Vec3A, Vec3A
         let d = square_to_uniform_sphere(rng.next_2d());
         let tmax = if i % 2 == 0 { 1.0 } else { f32::INFINITY };
         let o = match from.take() {
-            Some((p, n)) => offset_point(p, n, d, 1.0),
+            Some((p, n)) => offset_point(p.into(), n.into(), d.into(), 1.0).into(),
             None => {
                 Vec3A::new(rng.next_1d(), rng.next_1d(), rng.next_1d()) * 5.0 - Vec3A::splat(2.5)
             }

@@ -7,7 +7,6 @@
 //! method returns at once: a plain render does none of this arithmetic.
 
 use glam::Vec3;
-use wide::CmpEq;
 
 use super::lanes::{L, V3};
 use crate::integrator::volpath::PathSettings;
@@ -142,15 +141,5 @@ impl<const D: bool> Derivatives<D> {
             let d_g = self.d_g.add(beta.scale(g_score));
             self.g_result = self.g_result.select(mask, self.g_result.add(x.mul(d_g)));
         }
-    }
-}
-
-/// All lanes where `on`, none elsewhere.
-#[inline(always)]
-pub(super) fn all_lanes(on: bool) -> L {
-    if on {
-        L::ZERO.cmp_eq(L::ZERO)
-    } else {
-        L::ZERO
     }
 }

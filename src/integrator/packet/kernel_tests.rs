@@ -10,7 +10,10 @@ use glam::Vec3;
 use wide::f32x8;
 
 use crate::bsdf::fresnel::fresnel;
-use crate::geometry::shape::sample_sphere_cone;
+use crate::emitter::direction::{
+    along_direction, toward_area_point, toward_point, toward_sphere, DirectionSample,
+};
+use crate::geometry::shape::{sample_sphere_cone, Planar};
 use crate::geometry::{around, coordinate_system, to_world};
 use crate::integrator::roulette::continue_probability;
 use crate::medium::heterogeneous::{
@@ -197,6 +200,55 @@ fn cone_all<F: Float>([x, y, z, u1, u2]: [F; 5]) -> Vec<F> {
     [out3(c.d), vec![c.dist, c.pdf]].concat()
 }
 
+fn direction_out<F: Float>(s: DirectionSample<F>) -> Vec<F> {
+    [
+        out3(s.d),
+        vec![s.dist, s.pdf],
+        out3(s.weight),
+        vec![mask_value::<F>(s.valid)],
+    ]
+    .concat()
+}
+
+/// A rectangle light tilted off the axes, lit on its front only.
+fn rectangle_light() -> Planar {
+    let to_world = glam::Mat4::from_scale_rotation_translation(
+        Vec3::new(0.7, 1.3, 1.0),
+        glam::Quat::from_euler(glam::EulerRot::XYZ, 0.4, -0.3, 1.1),
+        Vec3::new(0.2, 0.1, 1.5),
+    );
+    Planar::new(to_world, false, false)
+}
+
+/// The point, directional and rectangle lights' samples from `(x, y, z)` (the
+/// rectangle's from the draws `(u1, u2)`).
+fn emitters_all<F: Float>([x, y, z, u1, u2]: [F; 5]) -> Vec<F> {
+    let p = v3(x, y, z);
+    let rgb = Vec3::new(0.5, 2.0, 7.0);
+    let point = toward_point(Vector3::splat(Vec3::new(0.3, -0.2, 0.9)), rgb, p);
+    let bounds = (Vec3::new(0.1, 0.2, -0.3), 1.7);
+    let directional = along_direction(Vec3::new(0.0, 0.6, 0.8), rgb, bounds, p);
+    let light = rectangle_light();
+    let on = (
+        light.rectangle_point(u1, u2),
+        Vector3::splat(light.normal.into()),
+    );
+    let area = toward_area_point(on, F::of(light.area as f64), rgb, p);
+    [
+        direction_out(point),
+        direction_out(directional),
+        direction_out(area),
+    ]
+    .concat()
+}
+
+/// A sphere light's sample from `(x, y, z)`, and whether that is inside it.
+fn sphere_light_all<F: Float>([x, y, z, u1, u2]: [F; 5]) -> Vec<F> {
+    let light = (Vec3::new(0.1, 0.0, -0.1), 0.9, false);
+    let (s, inside) = toward_sphere(light, Vec3::new(3.0, 1.0, 0.5), v3(x, y, z), (u1, u2));
+    [direction_out(s), vec![mask_value::<F>(inside)]].concat()
+}
+
 #[test]
 fn exact_kernels_equal_the_scalar_path_in_every_lane() {
     let exact = Bound::Exact;
@@ -255,6 +307,24 @@ fn exact_kernels_equal_the_scalar_path_in_every_lane() {
         },
         weights_all::<L>,
         weights_all::<f32>,
+    );
+    // Points near the lights (and on them, as a draw of 0 or 1 puts them) and far.
+    check(
+        "emitter directions: point, directional, rectangle",
+        exact,
+        |r| {
+            let [x, y, z] = unit(r);
+            let far = value(r, 0.0, 30.0);
+            [
+                x * far,
+                y * far,
+                z * far,
+                value(r, 0.0, 1.0),
+                value(r, 0.0, 1.0),
+            ]
+        },
+        emitters_all::<L>,
+        emitters_all::<f32>,
     );
     check(
         "tracking steps",
@@ -339,6 +409,18 @@ fn transcendental_kernels_stay_within_a_few_ulp_of_the_scalar_path() {
         cone_all::<L>,
         cone_all::<f32>,
     ));
+    // The sphere light from outside it (radius 0.9 about a point 0.14 from the origin).
+    worst.push(check(
+        "sphere light",
+        near,
+        |r| {
+            let [x, y, z] = unit(r);
+            let far = value(r, 1.1, 60.0);
+            [x * far, y * far, z * far, r.next_1d(), r.next_1d()]
+        },
+        sphere_light_all::<L>,
+        sphere_light_all::<f32>,
+    ));
     println!("largest (ulp, absolute) differences: {worst:?}");
 }
 
@@ -366,71 +448,4 @@ fn the_kernel_comparison_catches_a_one_ulp_change() {
         )
     });
     assert!(caught.is_err(), "an exp 8 ulp off went unseen");
-}
-
-/// The sphere light's cone in lanes is the scalar `Sphere::sample_cone`: the same
-/// direction, distance and pdf for the same draws, from near (a wide cone) and far (a
-/// cone under the small-angle threshold), and the points inside the sphere handed to
-/// the scalar code.
-#[test]
-fn the_sphere_cone_in_lanes_is_the_scalar_one() {
-    use super::lanes::V3;
-    use crate::geometry::shape::Sphere;
-    use glam::Vec3A;
-    let sphere = Sphere {
-        center: Vec3A::new(0.3, -0.2, 1.0),
-        radius: 0.5,
-        flip_normals: false,
-        axes: glam::Mat3A::IDENTITY,
-    };
-    let mut rng = Pcg32::new(7, 1);
-    for far in [1.2f32, 40.0] {
-        for _ in 0..200 {
-            let u1 = L::from(std::array::from_fn::<f32, 8, _>(|_| rng.next_1d()));
-            let u2 = L::from(std::array::from_fn::<f32, 8, _>(|_| rng.next_1d()));
-            let points: [Vec3A; 8] = std::array::from_fn(|_| {
-                let dir = Vec3A::new(
-                    rng.next_1d() - 0.5,
-                    rng.next_1d() - 0.5,
-                    rng.next_1d() - 0.5,
-                );
-                sphere.center + dir.normalize_or(Vec3A::X) * far
-            });
-            let p = V3::from_fn(|k| Vec3::from(points[k]));
-            let c =
-                super::emitters::sample_cone(Vec3::from(sphere.center), sphere.radius, p, u1, u2);
-            let (ua, ub) = (u1.to_array(), u2.to_array());
-            for k in 0..8 {
-                let s = sphere
-                    .sample_cone(points[k], glam::Vec2::new(ua[k], ub[k]))
-                    .expect("outside");
-                assert!(c.ok.move_mask() >> k & 1 == 1 && c.inside.move_mask() >> k & 1 == 0);
-                let d = c.d.lane_a(k);
-                assert!((d - s.d).length() < 1e-4, "far {far}: {d} against {}", s.d);
-                let dist = c.dist.to_array()[k];
-                assert!(
-                    (dist - s.dist).abs() <= 1e-4 * s.dist,
-                    "{dist} against {}",
-                    s.dist
-                );
-                let pdf = c.pdf.to_array()[k];
-                assert!(
-                    (pdf - s.pdf).abs() <= 1e-5 * s.pdf,
-                    "{pdf} against {}",
-                    s.pdf
-                );
-            }
-        }
-    }
-    let inside_points =
-        V3::from_fn(|k| Vec3::from(sphere.center) + Vec3::X * (sphere.radius * k as f32 / 8.0));
-    let c = super::emitters::sample_cone(
-        Vec3::from(sphere.center),
-        sphere.radius,
-        inside_points,
-        L::splat(0.3),
-        L::splat(0.6),
-    );
-    assert_eq!(c.inside.move_mask(), 0xff);
-    assert_eq!(c.ok.move_mask(), 0);
 }

@@ -7,15 +7,15 @@ use glam::{Vec3, Vec3A};
 use wide::{CmpEq, CmpGe, CmpGt, CmpLt};
 
 use super::boundary::boundary_sample;
-use super::derivatives::{all_lanes, Derivatives};
+use super::derivatives::Derivatives;
 use super::emitters::sample_emitters;
 use super::lanes::{mask_of, L, V3, WIDTH};
 use super::shapes::{shadow_transmittance, surface_hit, MediumSpan};
 use super::{
-    dielectric_of, emitting, gather_media, medium_normals, offset_magnitude, surface_emission,
-    surface_lanes, MediumLanes, PacketScene, MAX_NULL_CROSSINGS,
+    dielectric_of, emitting, gather_media, medium_normals, surface_emission, surface_lanes,
+    MediumLanes, PacketScene, MAX_NULL_CROSSINGS,
 };
-use crate::geometry::to_world;
+use crate::geometry::{offset_magnitude, offset_point, to_world};
 use crate::integrator::roulette::continue_probability;
 use crate::integrator::sample::PathSample;
 use crate::integrator::volpath::PathSettings;
@@ -28,6 +28,7 @@ use crate::medium::{
 use crate::sampling::warp::cosine_hemisphere;
 use crate::sampling::{Pcg32, Sampler};
 use crate::scene::Scene;
+use crate::simd::Float;
 
 /// A shadow ray's ∂ ln T, or zero for the power tests' estimator without it.
 #[inline(always)]
@@ -133,8 +134,8 @@ impl<'a> Context<'a> {
                 a: V3::splat(a),
                 b: V3::splat(b),
                 g: L::splat(m.g),
-                chosen_sigma: all_lanes(estimand.extinction_medium() == Some(0)),
-                chosen_g: all_lanes(estimand.g_medium() == Some(0) && m.hg),
+                chosen_sigma: L::mask(estimand.extinction_medium() == Some(0)),
+                chosen_g: L::mask(estimand.g_medium() == Some(0) && m.hg),
             }
         });
         Context {
@@ -631,9 +632,11 @@ impl<const D: bool> PacketPaths<D> {
             // boundary by the spawn offset (`geometry::offset_point`); in a medium whose
             // mean free path is that short the offset shows, so the packet takes it too.
             let n = medium_normals(ps, ends.entered, self.o, enters);
-            self.o = self
-                .o
-                .select(enters, self.o.sub(n.scale(offset_magnitude(ps, self.o))));
+            self.o = self.o.select(
+                enters,
+                self.o
+                    .sub(n.scale(offset_magnitude(self.o, ps.offset_scale))),
+            );
         }
         self.medium_shape = enters.blend(ends.entered, self.medium_shape);
         self.crossings = enters.blend(self.crossings + L::ONE, self.crossings);
@@ -691,9 +694,8 @@ impl<const D: bool> PacketPaths<D> {
         // boundary by the spawn offset (`geometry::offset_point`).
         let into = b.wo.dot(b.n).cmp_lt(L::ZERO);
         self.medium_shape = ok.blend(into.blend(shape, L::splat(NONE)), self.medium_shape);
-        let offset = offset_magnitude(ps, self.o);
-        let offset = into.blend(-offset, offset);
-        self.o = self.o.select(ok, self.o.add(b.n.scale(offset)));
+        let spawned = offset_point(self.o, b.n, b.wo, ps.offset_scale);
+        self.o = self.o.select(ok, spawned);
         self.d = self.d.select(ok, b.wo);
     }
 

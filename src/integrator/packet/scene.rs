@@ -3,10 +3,11 @@
 
 use glam::{Mat4, Vec3, Vec4};
 
+use crate::bsdf::dielectric::Dielectric;
 use crate::bsdf::Bsdf;
 use crate::emitter::Emitter;
 use crate::geometry::cuboid::Cuboid;
-use crate::geometry::shape::Geometry;
+use crate::geometry::shape::{Geometry, Planar};
 use crate::medium::Phase;
 use crate::scene::ties::Ties;
 use crate::scene::{IntegratorKind, Scene};
@@ -32,22 +33,14 @@ pub enum MediumKind {
     },
 }
 
-/// A smooth `dielectric` boundary (`bsdf::Dielectric`): int_ior / ext_ior and the
-/// specular reflectance and transmittance.
-#[derive(Clone, Copy, Debug)]
-pub struct DielectricBoundary {
-    pub eta: f32,
-    pub reflectance: Vec3,
-    pub transmittance: Vec3,
-}
-
 /// A medium in a sphere or a box, in empty space, behind a `null` boundary or a
 /// dielectric one (which seals it: no shadow ray passes).
 #[derive(Clone, Copy, Debug)]
 pub struct MediumShape {
     pub kind: MediumKind,
     pub medium: u32,
-    pub dielectric: Option<DielectricBoundary>,
+    /// A smooth `dielectric` boundary's BSDF.
+    pub dielectric: Option<Dielectric>,
     /// A sphere around it (centre, radius), for the scene's overlap checks.
     bound: (Vec3, f32),
 }
@@ -99,7 +92,7 @@ pub struct PacketMedium {
 
 /// The scene's one emitter to sample, where it is one whose sample the packet draws in
 /// lanes (`Emitter::sample_direction`'s forms); else the scalar code samples per lane.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub enum LaneEmitter {
     Scalar,
     Point {
@@ -112,11 +105,9 @@ pub enum LaneEmitter {
         irradiance: Vec3,
         bsphere: (Vec3, f32),
     },
-    /// An area light on a rectangle: the rows of its `to_world`, its normal and area.
+    /// An area light on a rectangle.
     Rectangle {
-        rows: [Vec4; 3],
-        normal: Vec3,
-        area: f32,
+        light: Planar,
         radiance: Vec3,
     },
     /// An area light on a sphere seen from outside (or from its surface), sampled by
@@ -199,11 +190,7 @@ impl PacketScene {
                         );
                     };
                     let dielectric = match bsdf {
-                        Bsdf::Dielectric(d) => Some(DielectricBoundary {
-                            eta: d.eta,
-                            reflectance: d.specular_reflectance,
-                            transmittance: d.specular_transmittance,
-                        }),
+                        Bsdf::Dielectric(d) => Some(*d),
                         _ => None,
                     };
                     media_shapes.push(MediumShape {
@@ -305,9 +292,7 @@ fn lane_emitter(scene: &Scene) -> LaneEmitter {
         },
         Emitter::Area { shape, radiance } => match &scene.geometries[*shape as usize] {
             Geometry::Planar(p) if !p.is_disk => LaneEmitter::Rectangle {
-                rows: [p.to_world.row(0), p.to_world.row(1), p.to_world.row(2)],
-                normal: Vec3::from(p.normal),
-                area: p.area,
+                light: p.clone(),
                 radiance: *radiance,
             },
             Geometry::Sphere(s) if !s.flip_normals => LaneEmitter::Sphere {

@@ -11,7 +11,6 @@ use super::{
     LastScatter, MediumLight, PathSettings, ShadowRay, MAX_NULL_CROSSINGS,
 };
 use crate::bsdf::Bsdf;
-use crate::geometry::offset_point;
 use crate::integrator::emitters::{sample_light_at_surface, skip_emitters};
 use crate::integrator::roulette::continue_probability;
 use crate::integrator::sample::PathSample;
@@ -606,7 +605,7 @@ impl<'a> PathState<'a> {
                 return false;
             }
             self.medium = medium_after(info, h.n, self.ray_d, self.medium);
-            self.ray_o = offset_point(h.p, h.n, self.ray_d, scene.offset_scale);
+            self.ray_o = h.offset_p(self.ray_d, scene.offset_scale);
             self.ray_tmax = f32::INFINITY;
             return true;
         }
@@ -687,7 +686,7 @@ impl<'a> PathState<'a> {
             self.specular_chain = bs.delta;
         }
         self.medium = medium_after(info, h.n, wo, self.medium);
-        self.ray_o = offset_point(h.p, h.n, wo, scene.offset_scale);
+        self.ray_o = h.offset_p(wo, scene.offset_scale);
         self.ray_d = wo;
         self.ray_tmax = f32::INFINITY;
         true

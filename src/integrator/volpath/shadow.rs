@@ -6,7 +6,6 @@ use glam::Vec3A;
 
 use super::{medium_after, medium_beyond, AdjointParams};
 use crate::geometry::accel::{Crossing, CrossingList, Crossings};
-use crate::geometry::offset_point;
 use crate::medium::Transmitted;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
@@ -169,7 +168,7 @@ pub(super) fn shadow_transmittance_stepwise(
             return Transmitted::blocked();
         }
         medium = medium_after(info, h.n, d, medium);
-        let o2 = offset_point(h.p, h.n, d, scene.offset_scale);
+        let o2 = h.offset_p(d, scene.offset_scale);
         dist -= (o2 - o).length();
         o = o2;
     }

@@ -139,23 +139,6 @@ type L = f32x8;
 type V3 = Vector3<L>;
 const WIDTH: usize = 8;
 
-fn all_lanes() -> L {
-    L::ZERO.cmp_eq(L::ZERO)
-}
-
-fn lane(v: V3, k: usize) -> Vec3 {
-    Vec3::new(v.x.to_array()[k], v.y.to_array()[k], v.z.to_array()[k])
-}
-
-fn from_fn(f: impl Fn(usize) -> Vec3) -> V3 {
-    let v: [Vec3; WIDTH] = std::array::from_fn(f);
-    V3::new(
-        L::from(v.map(|v| v.x)),
-        L::from(v.map(|v| v.y)),
-        L::from(v.map(|v| v.z)),
-    )
-}
-
 fn lanes_flight(
     h: &HeterogeneousMedium,
     o: V3,
@@ -221,16 +204,16 @@ fn lanes_estimate_what_the_scalar_code_does() {
     let mut rng = Pcg32::new(5, 99);
     let ol = V3::splat(Vec3::from(o));
     let dl = V3::splat(Vec3::from(d));
-    let all = all_lanes();
+    let all = L::mask(true);
     let mut lanes: [Vec<f64>; 3] = Default::default();
     let mut scalar: [[Vec<f64>; 3]; 2] = Default::default();
     for _ in 0..n / WIDTH {
         let tr = lanes_transmittance(&h, ol, dl, (L::ZERO, L::splat(3.0)), all, &mut rngs);
         let f = lanes_flight(&h, ol, dl, L::splat(3.0), all, &mut rngs);
         for k in 0..WIDTH {
-            lanes[0].push(lane(tr, k).x as f64);
+            lanes[0].push(tr.lane(k).x as f64);
             let c = f.collided.move_mask() >> k & 1 == 1;
-            lanes[1].push(if c { 0.0 } else { lane(f.weight, k).x as f64 });
+            lanes[1].push(if c { 0.0 } else { f.weight.lane(k).x as f64 });
             lanes[2].push(if c { f.t.as_array_ref()[k] as f64 } else { 0.0 });
         }
         for (m, out) in [&h, &denser].into_iter().zip(&mut scalar) {
@@ -311,7 +294,7 @@ fn lookup_bounds_change_no_flight() {
     wrong.bounds = bounded.bounds.as_ref().map(|b| b.with_hi_times(0.8));
     let mut empty = bounded.clone();
     empty.bounds = bounded.bounds.as_ref().map(|b| b.with_hi_times(0.0));
-    let all = all_lanes();
+    let all = L::mask(true);
     let mut dir = Pcg32::new(2, 3);
     let mut differ = [0usize; 3];
     for i in 0..400u64 {
@@ -322,8 +305,8 @@ fn lookup_bounds_change_no_flight() {
             (o, (target - o).normalize())
         };
         let rays: Vec<(Vec3, Vec3)> = (0..WIDTH).map(lane_ray).collect();
-        let o = from_fn(|k| rays[k].0);
-        let d = from_fn(|k| rays[k].1);
+        let o = V3::from_fn(|k| rays[k].0);
+        let d = V3::from_fn(|k| rays[k].1);
         let streams: Vec<Pcg32> = (0..WIDTH as u64).map(|k| Pcg32::new(i, k)).collect();
         let run = |h: &HeterogeneousMedium| {
             let mut rngs = streams.clone();
@@ -339,7 +322,7 @@ fn lookup_bounds_change_no_flight() {
                 .collect();
             let bits = |v: V3| {
                 (0..WIDTH)
-                    .map(|k| lane(v, k).to_array().map(f32::to_bits))
+                    .map(|k| v.lane(k).to_array().map(f32::to_bits))
                     .collect::<Vec<_>>()
             };
             let lanes = (
