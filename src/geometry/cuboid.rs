@@ -16,9 +16,11 @@
 //! Barycentrics are affine in the face's own coordinates (affine maps keep them), so
 //! each of a face's two triangles stores the map from the face point to its (u, v).
 
-use glam::{Affine3A, Mat4, Vec3, Vec3A};
+use glam::{Affine3A, Mat4, Vec3, Vec3A, Vec4};
 
 use super::mesh::TriangleMesh;
+use super::{affine_point, affine_vector};
+use crate::simd::{Float, Vector3};
 
 /// How far (in the box's own units) a vertex may lie from a corner of [-1, 1]³ for the
 /// mesh to be tested as a box (else it is left to the BVH).
@@ -59,6 +61,8 @@ pub struct Cuboid {
     /// at `first_leaf + i`): what a hit's `leaf` names.
     pub first_leaf: u32,
     to_local: Affine3A,
+    /// Its rows (the 3×3 part's and the translation's), for the slab test ([`slabs`]).
+    rows: [Vec4; 3],
     /// Per axis k: 1 / |∇x'_k|, the world distance per unit of the box's coordinate k
     /// across its faces (see [`Cuboid::distance_inside`]).
     face_spacing: Vec3A,
@@ -139,42 +143,38 @@ impl Cuboid {
             shape,
             first_leaf: 0,
             to_local,
+            rows: affine_rows(&to_local),
             face_spacing: grad_len.recip(),
             faces: faces.map(Option::unwrap),
             exit_along_normal,
         })
     }
 
+    /// The rows of the map to the box's [-1, 1]³ (`to_world`'s inverse).
+    pub fn rows(&self) -> &[Vec4; 3] {
+        &self.rows
+    }
+
     /// The ray in the box's space, and where it is inside the box: (t_near, entry face,
     /// t_far, exit face), or None if its line misses the box.
     #[inline(always)]
     fn slabs(&self, o: Vec3A, d: Vec3A) -> Option<(Vec3A, Vec3A, f32, usize, f32, usize)> {
-        let ol = self.to_local.transform_point3a(o);
-        let dl = self.to_local.transform_vector3a(d);
-        let inv = dl.recip();
-        let t_lo = (Vec3A::NEG_ONE - ol) * inv;
-        let t_hi = (Vec3A::ONE - ol) * inv;
-        let near = t_lo.min(t_hi);
-        let far = t_lo.max(t_hi);
-        // A ray parallel to a pair of planes gives ±∞ there (or NaN exactly on one,
-        // which `max`/`min` then ignore): the other axes decide.
-        let (mut t_near, mut near_axis) = (f32::NEG_INFINITY, 0);
-        let (mut t_far, mut far_axis) = (f32::INFINITY, 0);
-        for k in 0..3 {
-            if near[k] > t_near {
-                (t_near, near_axis) = (near[k], k);
-            }
-            if far[k] < t_far {
-                (t_far, far_axis) = (far[k], k);
-            }
-        }
-        if t_near > t_far {
+        let s = slabs::<f32>(&self.rows, o.into(), d.into());
+        if s.t_near > s.t_far {
             return None;
         }
+        let (near_axis, far_axis) = (s.near_axis as usize, s.far_axis as usize);
         // Entering a face on axis k through its side facing the ray: −1 if d'_k > 0.
-        let near_face = 2 * near_axis + (dl[near_axis] < 0.0) as usize;
-        let far_face = 2 * far_axis + (dl[far_axis] > 0.0) as usize;
-        Some((ol, dl, t_near, near_face, t_far, far_face))
+        let near_face = 2 * near_axis + (s.dl.component(near_axis) < 0.0) as usize;
+        let far_face = 2 * far_axis + (s.dl.component(far_axis) > 0.0) as usize;
+        Some((
+            s.ol.into(),
+            s.dl.into(),
+            s.t_near,
+            near_face,
+            s.t_far,
+            far_face,
+        ))
     }
 
     /// The hit at `t` on `face` of the ray (ol, dl) in the box's space: the face
@@ -259,6 +259,60 @@ impl Cuboid {
         self.slabs(o, d).is_some_and(|(_, _, t_near, _, t_far, _)| {
             (t_near > 0.0 && t_near < tmax) || (t_far > 0.0 && t_far < tmax)
         })
+    }
+}
+
+/// The rows of an affine map: its 3×3 part's, with the translation's component in w.
+pub fn affine_rows(m: &Affine3A) -> [Vec4; 3] {
+    std::array::from_fn(|k| m.matrix3.row(k).extend(m.translation[k]))
+}
+
+/// A ray's slab test against the box [-1, 1]³ of the map with rows `rows`, for a path
+/// or lanes.
+pub struct Slabs<F: Float> {
+    /// The ray in the box's space.
+    pub ol: Vector3<F>,
+    pub dl: Vector3<F>,
+    /// Where the line enters the intersection of the three slabs and leaves it (t_near >
+    /// t_far where it misses the box), and the axes whose faces those are.
+    pub t_near: F,
+    pub t_far: F,
+    pub near_axis: F,
+    pub far_axis: F,
+}
+
+/// The slab test of the module's note, in the box's space of `rows`. A ray parallel to a
+/// pair of planes gives ±∞ on that axis, or NaN exactly on one of them, which the
+/// comparisons below pass over: the other axes decide. Each interval is ordered as
+/// SSE's min and max order it (the second value where either is NaN), each axis taken
+/// where its bound is strictly tighter, so that one path and lanes round and decide
+/// alike.
+#[inline(always)]
+pub fn slabs<F: Float>(rows: &[Vec4; 3], o: Vector3<F>, d: Vector3<F>) -> Slabs<F> {
+    let (ol, dl) = (affine_point(rows, o), affine_vector(rows, d));
+    let one = F::one();
+    let mut t_near = F::of(f64::NEG_INFINITY);
+    let mut t_far = F::of(f64::INFINITY);
+    let (mut near_axis, mut far_axis) = (F::zero(), F::zero());
+    for k in 0..3 {
+        let (o, d) = (ol.component(k), dl.component(k));
+        let inv = one / d;
+        let (lo, hi) = ((one.negate() - o) * inv, (one - o) * inv);
+        let near = F::select(lo.lt(hi), lo, hi);
+        let far = F::select(lo.gt(hi), lo, hi);
+        let (tighter_near, tighter_far) = (near.gt(t_near), far.lt(t_far));
+        t_near = F::select(tighter_near, near, t_near);
+        near_axis = F::select(tighter_near, F::of(k as f64), near_axis);
+        t_far = F::select(tighter_far, far, t_far);
+        far_axis = F::select(tighter_far, F::of(k as f64), far_axis);
+    }
+    Slabs {
+        ol,
+        dl,
+        t_near,
+        t_far,
+        near_axis,
+        far_axis,
     }
 }
 

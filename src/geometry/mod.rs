@@ -9,7 +9,7 @@ pub mod ply;
 pub mod serialized;
 pub mod shape;
 
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 
 use crate::simd::{Float, Vector3};
 
@@ -63,6 +63,36 @@ pub fn offset_point<F: Float>(
 #[inline(always)]
 pub fn offset_magnitude<F: Float>(p: Vector3<F>, scale: f32) -> F {
     (F::of(scale as f64) + p.abs().max_element()) * F::of(RAY_EPSILON as f64)
+}
+
+/// Row `r` of an affine map (its 3×3 part's row, the translation's component in `w`)
+/// applied to the point `p`: ((r_x p_x + r_y p_y) + r_z p_z) + r_w, the order glam's
+/// transforms add in, for a path or lanes.
+#[inline(always)]
+pub fn affine_row_point<F: Float>(r: Vec4, p: Vector3<F>) -> F {
+    affine_row_vector(r, p) + F::of(r.w as f64)
+}
+
+/// Row `r` of an affine map applied to the direction `d`: (r_x d_x + r_y d_y) + r_z d_z.
+#[inline(always)]
+pub fn affine_row_vector<F: Float>(r: Vec4, d: Vector3<F>) -> F {
+    F::of(r.x as f64) * d.x + F::of(r.y as f64) * d.y + F::of(r.z as f64) * d.z
+}
+
+/// The affine map of rows `rows` applied to the point `p` (as glam's
+/// `transform_point3a`).
+#[inline(always)]
+pub fn affine_point<F: Float>(rows: &[Vec4; 3], p: Vector3<F>) -> Vector3<F> {
+    let [x, y, z] = rows.map(|r| affine_row_point(r, p));
+    Vector3::new(x, y, z)
+}
+
+/// The affine map of rows `rows` applied to the direction `d` (as glam's
+/// `transform_vector3a`).
+#[inline(always)]
+pub fn affine_vector<F: Float>(rows: &[Vec4; 3], d: Vector3<F>) -> Vector3<F> {
+    let [x, y, z] = rows.map(|r| affine_row_vector(r, d));
+    Vector3::new(x, y, z)
 }
 
 /// An orthonormal frame around `n` (Duff et al. 2017, as Mitsuba's `coordinate_system`).

@@ -4,7 +4,7 @@
 use glam::{Mat3A, Mat4, Vec2, Vec3A, Vec4};
 
 use super::mesh::TriangleMesh;
-use super::Bounds;
+use super::{affine_point, affine_vector, Bounds};
 use crate::sampling::warp::{square_to_uniform_disk_concentric, square_to_uniform_sphere};
 use crate::simd::{Float, Vector3};
 
@@ -25,6 +25,8 @@ pub struct Sphere {
 pub struct Planar {
     pub to_world: Mat4,
     pub to_local: Mat4,
+    /// `to_local`'s first three rows, for the ray test ([`plane_hit`]).
+    pub to_local_rows: [Vec4; 3],
     pub normal: Vec3A,
     pub area: f32,
     pub is_disk: bool,
@@ -56,9 +58,11 @@ impl Planar {
         } else {
             4.0 * jac
         };
+        let to_local = to_world.inverse();
         Planar {
             to_world,
-            to_local: to_world.inverse(),
+            to_local,
+            to_local_rows: [to_local.row(0), to_local.row(1), to_local.row(2)],
             normal,
             area,
             is_disk,
@@ -67,22 +71,8 @@ impl Planar {
 
     #[inline]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<f32> {
-        let ol = self.to_local.transform_point3a(o);
-        let dl = self.to_local.transform_vector3a(d);
-        if dl.z == 0.0 {
-            return None;
-        }
-        let t = -ol.z / dl.z;
-        if !(t > 0.0 && t < tmax) {
-            return None;
-        }
-        let p = ol + dl * t;
-        let inside = if self.is_disk {
-            p.x * p.x + p.y * p.y <= 1.0
-        } else {
-            p.x.abs() <= 1.0 && p.y.abs() <= 1.0
-        };
-        inside.then_some(t)
+        let (hit, t) = plane_hit(&self.to_local_rows, self.is_disk, o.into(), d.into());
+        (hit && t < tmax).then_some(t)
     }
 
     pub fn sample_position(&self, s: Vec2) -> Vec3A {
@@ -112,6 +102,28 @@ impl Planar {
         }
         b
     }
+}
+
+/// Where a ray meets the rectangle or disk whose `to_local` map has the rows `rows` (the
+/// shape in its z = 0 plane, within [-1, 1]² or the unit disk), ahead of its origin:
+/// (whether it does, t), for a path or lanes. A ray parallel to the plane gives t =
+/// ±∞ or NaN, which is no hit.
+#[inline(always)]
+pub fn plane_hit<F: Float>(
+    rows: &[Vec4; 3],
+    disk: bool,
+    o: Vector3<F>,
+    d: Vector3<F>,
+) -> (F::Mask, F) {
+    let (ol, dl) = (affine_point(rows, o), affine_vector(rows, d));
+    let t = ol.z.negate() / dl.z;
+    let (x, y) = (ol.x + dl.x * t, ol.y + dl.y * t);
+    let one = F::one();
+    let inside = match disk {
+        true => (x * x + y * y).le(one),
+        false => x.abs().le(one) & y.abs().le(one),
+    };
+    (inside & t.gt(F::zero()) & t.is_finite(), t)
 }
 
 /// Uniform pdf over a cone of half-angle θ_max.

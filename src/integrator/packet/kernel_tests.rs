@@ -13,7 +13,8 @@ use crate::bsdf::fresnel::fresnel;
 use crate::emitter::direction::{
     along_direction, toward_area_point, toward_point, toward_sphere, DirectionSample,
 };
-use crate::geometry::shape::{sample_sphere_cone, Planar};
+use crate::geometry::cuboid::{affine_rows, slabs};
+use crate::geometry::shape::{plane_hit, sample_sphere_cone, Planar};
 use crate::geometry::{around, coordinate_system, to_world};
 use crate::integrator::roulette::continue_probability;
 use crate::medium::heterogeneous::{
@@ -220,6 +221,34 @@ fn rectangle_light() -> Planar {
     Planar::new(to_world, false, false)
 }
 
+/// A ray from `(x, y, z)` along the unit `(a, b, c)` against a turned, stretched box
+/// (its slab test) and a turned rectangle and disk.
+fn shapes_all<F: Float>([x, y, z, a, b, c]: [F; 6]) -> Vec<F> {
+    let (o, d) = (v3(x, y, z), v3(a, b, c));
+    let box_to_world = glam::Affine3A::from_scale_rotation_translation(
+        Vec3::new(0.6, 1.1, 0.8),
+        glam::Quat::from_euler(glam::EulerRot::XYZ, -0.7, 0.2, 0.5),
+        Vec3::new(0.1, -0.2, 0.3),
+    );
+    let s = slabs(&affine_rows(&box_to_world.inverse()), o, d);
+    let light = rectangle_light();
+    let disk = Planar::new(light.to_world, false, true);
+    let (on_rect, t_rect) = plane_hit(&light.to_local_rows, false, o, d);
+    let (on_disk, t_disk) = plane_hit(&disk.to_local_rows, true, o, d);
+    [
+        out3(s.ol),
+        out3(s.dl),
+        vec![s.t_near, s.t_far, s.near_axis, s.far_axis],
+        vec![
+            mask_value::<F>(on_rect),
+            t_rect,
+            mask_value::<F>(on_disk),
+            t_disk,
+        ],
+    ]
+    .concat()
+}
+
 /// The point, directional and rectangle lights' samples from `(x, y, z)` (the
 /// rectangle's from the draws `(u1, u2)`).
 fn emitters_all<F: Float>([x, y, z, u1, u2]: [F; 5]) -> Vec<F> {
@@ -307,6 +336,23 @@ fn exact_kernels_equal_the_scalar_path_in_every_lane() {
         },
         weights_all::<L>,
         weights_all::<f32>,
+    );
+    // Rays from inside the shapes and outside, some along the axes (parallel to faces).
+    check(
+        "slab test and plane hits",
+        exact,
+        |r| {
+            let far = value(r, 0.0, 4.0);
+            let [x, y, z] = unit(r);
+            let [a, b, c] = match (r.next_1d() * 8.0) as u32 {
+                0 => [0.0, 0.0, 1.0],
+                1 => [1.0, 0.0, 0.0],
+                _ => unit(r),
+            };
+            [x * far, y * far, z * far, a, b, c]
+        },
+        shapes_all::<L>,
+        shapes_all::<f32>,
     );
     // Points near the lights (and on them, as a draw of 0 or 1 puts them) and far.
     check(

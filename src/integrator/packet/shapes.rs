@@ -9,6 +9,9 @@ use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 use super::lanes::{L, V3};
 use super::scene::{MediumKind, PacketScene, SurfaceShape};
+use crate::geometry::affine_row_point;
+use crate::geometry::cuboid::slabs;
+use crate::geometry::shape::plane_hit;
 use crate::medium::Transmitted;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
@@ -83,24 +86,13 @@ impl MediumSpan {
                 }
             }
             MediumKind::Box { rows } => {
-                // Slab test in the box's space (Kay & Kajiya; `geometry::cuboid`): on
-                // axis k the ray is between the faces x_k = ±1 for t between
-                // (±1 − o_k) / d_k; in the box on the intersection of the three.
-                let mut near = L::splat(f32::NEG_INFINITY);
-                let mut far = L::splat(f32::INFINITY);
-                for r in rows {
-                    let (ok, dk) = (affine_row(*r, o, 1.0), affine_row(*r, d, 0.0));
-                    let inv = L::ONE / dk;
-                    let t1 = (-L::ONE - ok) * inv;
-                    let t2 = (L::ONE - ok) * inv;
-                    near = near.max(t1.min(t2));
-                    far = far.min(t1.max(t2));
-                }
+                // The slab test (`geometry::cuboid::slabs`).
+                let s = slabs(rows, o, d);
                 MediumSpan {
-                    exit: far.max(L::ZERO),
-                    enters: near.cmp_gt(L::ZERO) & near.cmp_le(far),
-                    near,
-                    far,
+                    exit: s.t_far.max(L::ZERO),
+                    enters: s.t_near.cmp_gt(L::ZERO) & s.t_near.cmp_le(s.t_far),
+                    near: s.t_near,
+                    far: s.t_far,
                 }
             }
         }
@@ -122,7 +114,7 @@ pub fn medium_normal(kind: &MediumKind, p: V3) -> V3 {
 /// that of the face whose coordinate is ±1 there (the largest in magnitude).
 #[inline(always)]
 fn box_normal(rows: &[Vec4; 3], p: V3) -> V3 {
-    let [x, y, z] = rows.map(|r| affine_row(r, p, 1.0));
+    let [x, y, z] = rows.map(|r| affine_row_point(r, p));
     let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
     let on_x = ax.cmp_ge(ay) & ax.cmp_ge(az);
     let on_y = !on_x & ay.cmp_ge(az);
@@ -137,31 +129,6 @@ fn box_normal(rows: &[Vec4; 3], p: V3) -> V3 {
     g.scale(L::ONE / g.dot(g).sqrt())
 }
 
-/// Row `r` of an affine map applied to `v` with homogeneous coordinate `w` (1 for a
-/// point, 0 for a direction).
-#[inline(always)]
-fn affine_row(r: Vec4, v: V3, w: f32) -> L {
-    L::splat(r.x) * v.x + L::splat(r.y) * v.y + L::splat(r.z) * v.z + L::splat(r.w * w)
-}
-
-/// Where the ray meets a rectangle or disk (`rows`: its `to_local` map), if ahead of
-/// its origin: (mask, t).
-#[inline(always)]
-pub fn planar_hit(o: V3, d: V3, rows: &[Vec4; 3], disk: bool) -> (L, L) {
-    let row = affine_row;
-    let (oz, dz) = (row(rows[2], o, 1.0), row(rows[2], d, 0.0));
-    let t = -oz / dz;
-    let x = row(rows[0], o, 1.0) + row(rows[0], d, 0.0) * t;
-    let y = row(rows[1], o, 1.0) + row(rows[1], d, 0.0) * t;
-    let inside = if disk {
-        (x * x + y * y).cmp_le(L::ONE)
-    } else {
-        x.abs().cmp_le(L::ONE) & y.abs().cmp_le(L::ONE)
-    };
-    // t > 0 is false for the NaN of a ray parallel to the plane (0 / 0) and for ±∞.
-    (inside & t.cmp_gt(L::ZERO) & t.is_finite(), t)
-}
-
 /// Where the ray meets surface `k` from its origin (not the surface it is on: `skip`):
 /// (mask, t).
 #[inline(always)]
@@ -172,7 +139,7 @@ pub fn surface_hit(ps: &PacketScene, k: usize, o: V3, d: V3, skip: L) -> (L, L) 
             let (enters, near, _) = SphereRoots::new(o, d, *center, *radius2).entry();
             (enters, near)
         }
-        SurfaceShape::Planar { rows, disk, .. } => planar_hit(o, d, rows, *disk),
+        SurfaceShape::Planar { rows, disk, .. } => plane_hit(rows, *disk, o, d),
         SurfaceShape::Box { rows } => {
             let span = MediumSpan::new(&MediumKind::Box { rows: *rows }, o, d);
             (span.enters, span.near)
