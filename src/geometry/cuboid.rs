@@ -19,7 +19,6 @@
 use glam::{Affine3A, Mat4, Vec3, Vec3A, Vec4};
 
 use super::mesh::TriangleMesh;
-use super::{affine_point, affine_vector};
 use crate::simd::{Float, Vector3};
 
 /// How far (in the box's own units) a vertex may lie from a corner of [-1, 1]³ for the
@@ -61,8 +60,6 @@ pub struct Cuboid {
     /// at `first_leaf + i`): what a hit's `leaf` names.
     pub first_leaf: u32,
     to_local: Affine3A,
-    /// Its rows (the 3×3 part's and the translation's), for the slab test ([`slabs`]).
-    rows: [Vec4; 3],
     /// Per axis k: 1 / |∇x'_k|, the world distance per unit of the box's coordinate k
     /// across its faces (see [`Cuboid::distance_inside`]).
     face_spacing: Vec3A,
@@ -143,38 +140,32 @@ impl Cuboid {
             shape,
             first_leaf: 0,
             to_local,
-            rows: affine_rows(&to_local),
             face_spacing: grad_len.recip(),
             faces: faces.map(Option::unwrap),
             exit_along_normal,
         })
     }
 
-    /// The rows of the map to the box's [-1, 1]³ (`to_world`'s inverse).
-    pub fn rows(&self) -> &[Vec4; 3] {
-        &self.rows
+    /// The rows of the map to the box's [-1, 1]³ (`to_world`'s inverse), for lanes.
+    pub fn rows(&self) -> [Vec4; 3] {
+        affine_rows(&self.to_local)
     }
 
     /// The ray in the box's space, and where it is inside the box: (t_near, entry face,
     /// t_far, exit face), or None if its line misses the box.
     #[inline(always)]
     fn slabs(&self, o: Vec3A, d: Vec3A) -> Option<(Vec3A, Vec3A, f32, usize, f32, usize)> {
-        let s = slabs::<f32>(&self.rows, o.into(), d.into());
+        let ol = self.to_local.transform_point3a(o);
+        let dl = self.to_local.transform_vector3a(d);
+        let s = slabs::<f32>(ol.into(), dl.into());
         if s.t_near > s.t_far {
             return None;
         }
         let (near_axis, far_axis) = (s.near_axis as usize, s.far_axis as usize);
         // Entering a face on axis k through its side facing the ray: −1 if d'_k > 0.
-        let near_face = 2 * near_axis + (s.dl.component(near_axis) < 0.0) as usize;
-        let far_face = 2 * far_axis + (s.dl.component(far_axis) > 0.0) as usize;
-        Some((
-            s.ol.into(),
-            s.dl.into(),
-            s.t_near,
-            near_face,
-            s.t_far,
-            far_face,
-        ))
+        let near_face = 2 * near_axis + (dl[near_axis] < 0.0) as usize;
+        let far_face = 2 * far_axis + (dl[far_axis] > 0.0) as usize;
+        Some((ol, dl, s.t_near, near_face, s.t_far, far_face))
     }
 
     /// The hit at `t` on `face` of the ray (ol, dl) in the box's space: the face
@@ -267,12 +258,8 @@ pub fn affine_rows(m: &Affine3A) -> [Vec4; 3] {
     std::array::from_fn(|k| m.matrix3.row(k).extend(m.translation[k]))
 }
 
-/// A ray's slab test against the box [-1, 1]³ of the map with rows `rows`, for a path
-/// or lanes.
+/// A ray's slab test against the box [-1, 1]³, for a path or lanes.
 pub struct Slabs<F: Float> {
-    /// The ray in the box's space.
-    pub ol: Vector3<F>,
-    pub dl: Vector3<F>,
     /// Where the line enters the intersection of the three slabs and leaves it (t_near >
     /// t_far where it misses the box), and the axes whose faces those are.
     pub t_near: F,
@@ -281,15 +268,15 @@ pub struct Slabs<F: Float> {
     pub far_axis: F,
 }
 
-/// The slab test of the module's note, in the box's space of `rows`. A ray parallel to a
-/// pair of planes gives ±∞ on that axis, or NaN exactly on one of them, which the
-/// comparisons below pass over: the other axes decide. Each interval is ordered as
-/// SSE's min and max order it (the second value where either is NaN), each axis taken
-/// where its bound is strictly tighter, so that one path and lanes round and decide
-/// alike.
+/// The slab test of the module's note on the ray `ol + t dl` in the box's space (one
+/// path maps it with glam, lanes with `geometry::affine_point`/`affine_vector`: the
+/// same bits). A ray parallel to a pair of planes gives ±∞ on that axis, or NaN exactly
+/// on one of them, which the comparisons below pass over: the other axes decide. Each
+/// interval is ordered as SSE's min and max order it (the second value where either is
+/// NaN), each axis taken where its bound is strictly tighter, so that one path and
+/// lanes round and decide alike.
 #[inline(always)]
-pub fn slabs<F: Float>(rows: &[Vec4; 3], o: Vector3<F>, d: Vector3<F>) -> Slabs<F> {
-    let (ol, dl) = (affine_point(rows, o), affine_vector(rows, d));
+pub fn slabs<F: Float>(ol: Vector3<F>, dl: Vector3<F>) -> Slabs<F> {
     let one = F::one();
     let mut t_near = F::of(f64::NEG_INFINITY);
     let mut t_far = F::of(f64::INFINITY);
@@ -307,8 +294,6 @@ pub fn slabs<F: Float>(rows: &[Vec4; 3], o: Vector3<F>, d: Vector3<F>) -> Slabs<
         far_axis = F::select(tighter_far, F::of(k as f64), far_axis);
     }
     Slabs {
-        ol,
-        dl,
         t_near,
         t_far,
         near_axis,

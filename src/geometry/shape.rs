@@ -4,7 +4,7 @@
 use glam::{Mat3A, Mat4, Vec2, Vec3A, Vec4};
 
 use super::mesh::TriangleMesh;
-use super::{affine_point, affine_vector, Bounds};
+use super::Bounds;
 use crate::sampling::warp::{square_to_uniform_disk_concentric, square_to_uniform_sphere};
 use crate::simd::{Float, Vector3};
 
@@ -25,8 +25,8 @@ pub struct Sphere {
 pub struct Planar {
     pub to_world: Mat4,
     pub to_local: Mat4,
-    /// `to_local`'s first three rows, for the ray test ([`plane_hit`]).
-    pub to_local_rows: [Vec4; 3],
+    /// `to_world`'s first three rows, for sampling ([`Planar::rectangle_point`]).
+    to_world_rows: [Vec4; 3],
     pub normal: Vec3A,
     pub area: f32,
     pub is_disk: bool,
@@ -62,7 +62,7 @@ impl Planar {
         Planar {
             to_world,
             to_local,
-            to_local_rows: [to_local.row(0), to_local.row(1), to_local.row(2)],
+            to_world_rows: [to_world.row(0), to_world.row(1), to_world.row(2)],
             normal,
             area,
             is_disk,
@@ -71,8 +71,10 @@ impl Planar {
 
     #[inline]
     pub fn intersect(&self, o: Vec3A, d: Vec3A, tmax: f32) -> Option<f32> {
-        let (hit, t) = plane_hit(&self.to_local_rows, self.is_disk, o.into(), d.into());
-        (hit && t < tmax).then_some(t)
+        let ol = self.to_local.transform_point3a(o);
+        let dl = self.to_local.transform_vector3a(d);
+        let (hit, t) = plane_hit(ol.into(), dl.into(), self.is_disk, tmax);
+        hit.then_some(t)
     }
 
     pub fn sample_position(&self, s: Vec2) -> Vec3A {
@@ -90,9 +92,10 @@ impl Planar {
         let (two, one) = (F::of(2.0), F::one());
         let (x, y) = (two * u1 - one, two * u2 - one);
         // The local z = 0 drops the third column (its product is a signed zero).
-        let row = |r: Vec4| F::of(r.x as f64) * x + F::of(r.y as f64) * y + F::of(r.w as f64);
-        let m = &self.to_world;
-        Vector3::new(row(m.row(0)), row(m.row(1)), row(m.row(2)))
+        let [px, py, pz] = self
+            .to_world_rows
+            .map(|r| F::of(r.x as f64) * x + F::of(r.y as f64) * y + F::of(r.w as f64));
+        Vector3::new(px, py, pz)
     }
 
     pub fn bounds(&self) -> Bounds {
@@ -104,26 +107,25 @@ impl Planar {
     }
 }
 
-/// Where a ray meets the rectangle or disk whose `to_local` map has the rows `rows` (the
-/// shape in its z = 0 plane, within [-1, 1]² or the unit disk), ahead of its origin:
-/// (whether it does, t), for a path or lanes. A ray parallel to the plane gives t =
-/// ±∞ or NaN, which is no hit.
+/// Where a ray meets a rectangle or disk with t in (0, tmax), given in the shape's own
+/// space (`ol + t dl`; the shape in its z = 0 plane, within [-1, 1]² or the unit disk):
+/// (whether it does, t), for a path or lanes. A ray parallel to the plane gives t = ±∞
+/// or NaN, which is no hit. (One path maps the ray with glam, lanes with
+/// `geometry::affine_point`/`affine_vector`: the same bits.)
 #[inline(always)]
-pub fn plane_hit<F: Float>(
-    rows: &[Vec4; 3],
-    disk: bool,
-    o: Vector3<F>,
-    d: Vector3<F>,
-) -> (F::Mask, F) {
-    let (ol, dl) = (affine_point(rows, o), affine_vector(rows, d));
+pub fn plane_hit<F: Float>(ol: Vector3<F>, dl: Vector3<F>, disk: bool, tmax: F) -> (F::Mask, F) {
     let t = ol.z.negate() / dl.z;
+    let ahead = t.gt(F::zero()) & t.lt(tmax);
+    if !F::any(ahead) {
+        return (ahead, t);
+    }
     let (x, y) = (ol.x + dl.x * t, ol.y + dl.y * t);
     let one = F::one();
     let inside = match disk {
         true => (x * x + y * y).le(one),
         false => x.abs().le(one) & y.abs().le(one),
     };
-    (inside & t.gt(F::zero()) & t.is_finite(), t)
+    (inside & ahead, t)
 }
 
 /// Uniform pdf over a cone of half-angle θ_max.

@@ -15,6 +15,7 @@ use crate::emitter::direction::{
 };
 use crate::geometry::cuboid::{affine_rows, slabs};
 use crate::geometry::shape::{plane_hit, sample_sphere_cone, Planar};
+use crate::geometry::{affine_point, affine_vector};
 use crate::geometry::{around, coordinate_system, to_world};
 use crate::integrator::roulette::continue_probability;
 use crate::medium::heterogeneous::{
@@ -221,23 +222,31 @@ fn rectangle_light() -> Planar {
     Planar::new(to_world, false, false)
 }
 
-/// A ray from `(x, y, z)` along the unit `(a, b, c)` against a turned, stretched box
-/// (its slab test) and a turned rectangle and disk.
-fn shapes_all<F: Float>([x, y, z, a, b, c]: [F; 6]) -> Vec<F> {
-    let (o, d) = (v3(x, y, z), v3(a, b, c));
-    let box_to_world = glam::Affine3A::from_scale_rotation_translation(
+/// A turned, stretched box's map to its [-1, 1]³.
+fn box_to_local() -> glam::Affine3A {
+    glam::Affine3A::from_scale_rotation_translation(
         Vec3::new(0.6, 1.1, 0.8),
         glam::Quat::from_euler(glam::EulerRot::XYZ, -0.7, 0.2, 0.5),
         Vec3::new(0.1, -0.2, 0.3),
-    );
-    let s = slabs(&affine_rows(&box_to_world.inverse()), o, d);
+    )
+    .inverse()
+}
+
+/// A ray from `(x, y, z)` along the unit `(a, b, c)` against the box (its slab test), a
+/// turned rectangle and disk, each mapped to the shape's space by its
+/// rows (`geometry::affine_point`, `affine_vector`).
+fn shapes_all<F: Float>([x, y, z, a, b, c]: [F; 6]) -> Vec<F> {
+    let (o, d) = (v3(x, y, z), v3(a, b, c));
+    let rows = affine_rows(&box_to_local());
+    let s = slabs(affine_point(&rows, o), affine_vector(&rows, d));
     let light = rectangle_light();
-    let disk = Planar::new(light.to_world, false, true);
-    let (on_rect, t_rect) = plane_hit(&light.to_local_rows, false, o, d);
-    let (on_disk, t_disk) = plane_hit(&disk.to_local_rows, true, o, d);
+    let rows = [0, 1, 2].map(|k| light.to_local.row(k));
+    let (ol, dl) = (affine_point(&rows, o), affine_vector(&rows, d));
+    let (on_rect, t_rect) = plane_hit(ol, dl, false, F::of(f64::INFINITY));
+    let (on_disk, t_disk) = plane_hit(ol, dl, true, F::of(3.0));
     [
-        out3(s.ol),
-        out3(s.dl),
+        out3(ol),
+        out3(dl),
         vec![s.t_near, s.t_far, s.near_axis, s.far_axis],
         vec![
             mask_value::<F>(on_rect),
@@ -247,6 +256,44 @@ fn shapes_all<F: Float>([x, y, z, a, b, c]: [F; 6]) -> Vec<F> {
         ],
     ]
     .concat()
+}
+
+/// The rows of an affine map applied as `geometry::affine_point`/`affine_vector` apply
+/// them are glam's `transform_point3a`/`transform_vector3a`, bit for bit: the one path
+/// maps rays into a shape's space with glam, the lanes with the rows.
+#[test]
+fn affine_rows_apply_as_glam_does() {
+    let mut rng = Pcg32::new(3, 9);
+    let box_map = box_to_local();
+    let box_rows = affine_rows(&box_map);
+    let plane_map = rectangle_light().to_local;
+    let plane_rows = [0, 1, 2].map(|k| plane_map.row(k));
+    let bits = |v: glam::Vec3A| v.to_array().map(f32::to_bits);
+    for _ in 0..20_000 {
+        let far = value(&mut rng, 0.0, 50.0);
+        let p = glam::Vec3A::from(unit(&mut rng)) * far;
+        let q: Vector3<f32> = p.into();
+        let same = |a: Vector3<f32>, b: glam::Vec3A| bits(a.into()) == bits(b);
+        assert!(
+            same(affine_point(&box_rows, q), box_map.transform_point3a(p)),
+            "{p}"
+        );
+        assert!(
+            same(affine_vector(&box_rows, q), box_map.transform_vector3a(p)),
+            "{p}"
+        );
+        assert!(
+            same(affine_point(&plane_rows, q), plane_map.transform_point3a(p)),
+            "{p}"
+        );
+        assert!(
+            same(
+                affine_vector(&plane_rows, q),
+                plane_map.transform_vector3a(p)
+            ),
+            "{p}"
+        );
+    }
 }
 
 /// The point, directional and rectangle lights' samples from `(x, y, z)` (the

@@ -321,7 +321,7 @@ fn medium_kind(geometry: &Geometry) -> Option<(MediumKind, (Vec3, f32))> {
         Geometry::Mesh(m) => {
             let to_world = m.cube_to_world?;
             // The map to the box's space as the one path's slab test has it.
-            let rows = *Cuboid::new(0, m, &to_world)?.rows();
+            let rows = Cuboid::new(0, m, &to_world)?.rows();
             let center = to_world.transform_point3(Vec3::ZERO);
             // The farthest corner from the centre bounds the box.
             let radius = (0..8)
@@ -405,7 +405,7 @@ fn diffuse_surface(
         }
         Geometry::Planar(p) => {
             let shape = SurfaceShape::Planar {
-                rows: p.to_local_rows,
+                rows: [p.to_local.row(0), p.to_local.row(1), p.to_local.row(2)],
                 normal: Vec3::from(p.normal),
                 disk: p.is_disk,
             };

@@ -9,9 +9,9 @@ use wide::{CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 use super::lanes::{L, V3};
 use super::scene::{MediumKind, PacketScene, SurfaceShape};
-use crate::geometry::affine_row_point;
 use crate::geometry::cuboid::slabs;
 use crate::geometry::shape::plane_hit;
+use crate::geometry::{affine_point, affine_row_point, affine_vector};
 use crate::medium::Transmitted;
 use crate::sampling::Pcg32;
 use crate::scene::Scene;
@@ -87,7 +87,7 @@ impl MediumSpan {
             }
             MediumKind::Box { rows } => {
                 // The slab test (`geometry::cuboid::slabs`).
-                let s = slabs(rows, o, d);
+                let s = slabs(affine_point(rows, o), affine_vector(rows, d));
                 MediumSpan {
                     exit: s.t_far.max(L::ZERO),
                     enters: s.t_near.cmp_gt(L::ZERO) & s.t_near.cmp_le(s.t_far),
@@ -139,7 +139,10 @@ pub fn surface_hit(ps: &PacketScene, k: usize, o: V3, d: V3, skip: L) -> (L, L) 
             let (enters, near, _) = SphereRoots::new(o, d, *center, *radius2).entry();
             (enters, near)
         }
-        SurfaceShape::Planar { rows, disk, .. } => plane_hit(rows, *disk, o, d),
+        SurfaceShape::Planar { rows, disk, .. } => {
+            let (ol, dl) = (affine_point(rows, o), affine_vector(rows, d));
+            plane_hit(ol, dl, *disk, L::splat(f32::INFINITY))
+        }
         SurfaceShape::Box { rows } => {
             let span = MediumSpan::new(&MediumKind::Box { rows: *rows }, o, d);
             (span.enters, span.near)
