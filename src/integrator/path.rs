@@ -9,7 +9,7 @@
 use glam::{Vec3, Vec3A};
 
 use super::emitters::{sample_light_at_surface, skip_emitters};
-use super::roulette::continue_probability;
+use super::roulette::roulette;
 use super::sample::PathSample;
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::Scene;
@@ -121,13 +121,14 @@ pub fn sample(scene: &Scene, o: Vec3A, d: Vec3A, tmax: f32, rng: &mut Pcg32) -> 
 
         // ---- Russian roulette ----
         let tmax_c = throughput.max_element();
-        let rr_prob = continue_probability(throughput.into(), Vector3::all(0.0), eta);
         if depth >= s.rr_depth {
             // Drawn only where played, as in volpath (the first draws are stratified).
-            if rng.next_1d() >= rr_prob {
+            let u = rng.next_1d();
+            let (goes_on, q) = roulette(throughput.into(), Vector3::all(0.0), eta, u);
+            if !goes_on {
                 break;
             }
-            throughput /= rr_prob;
+            throughput /= q;
         }
         if tmax_c == 0.0 {
             break;

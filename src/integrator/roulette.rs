@@ -15,3 +15,12 @@ pub fn continue_probability<F: Float>(w: Vector3<F>, d: Vector3<F>, eta: F) -> F
     let w_max = F::select(w_max.gt(F::zero()), w_max, d.abs().max_element());
     (w_max * eta * eta).min(F::of(0.95))
 }
+
+/// The roulette at a vertex past `rr_depth`, from its draw `u`: whether the path goes on
+/// (u < q, [`continue_probability`]; a NaN q ends it) and the q its weights are then
+/// divided by. One definition for a path and for lanes of paths.
+#[inline(always)]
+pub fn roulette<F: Float>(w: Vector3<F>, d: Vector3<F>, eta: F, u: F) -> (F::Mask, F) {
+    let q = continue_probability(w, d, eta);
+    (u.lt(q), q)
+}

@@ -59,6 +59,7 @@ use crate::medium::Medium;
 use crate::sampling::mis_weight;
 use crate::sampling::Pcg32;
 use crate::scene::{Scene, ShapeInfo, SurfaceInteraction};
+use crate::simd::{Float, Vector3};
 
 /// Consecutive null-boundary crossings (no scattering between them: depth does not
 /// grow, and Russian roulette may not run) after which a path ends. Only a degenerate
@@ -343,6 +344,16 @@ impl Estimand {
     #[inline]
     pub fn roulette_by_target(self) -> bool {
         matches!(self, Estimand::AlbedoDifference { .. })
+    }
+
+    /// The weight the roulette goes by: the path's β, or the target's β + dβ
+    /// ([`Estimand::roulette_by_target`]), for a path or lanes.
+    #[inline(always)]
+    pub fn roulette_weight<F: Float>(self, beta: Vector3<F>, d_beta: Vector3<F>) -> Vector3<F> {
+        match self.roulette_by_target() {
+            true => beta.add(d_beta),
+            false => beta,
+        }
     }
 
     /// Whether a medium vertex's emitter sample is weighed by dβ without the vertex's

@@ -132,6 +132,13 @@ pub fn transmittance_rgb<F: Float>(sigma_t: Vector3<F>, t: F) -> Vector3<F> {
     )
 }
 
+/// The hero channel a path draws its distances with (volpath's module comment): each
+/// of the three with probability 1/3, from the draw `u` in [0, 1).
+#[inline(always)]
+pub fn hero_channel(u: f32) -> usize {
+    ((u * 3.0) as usize).min(2)
+}
+
 /// The hero channel's free-flight weights (volpath's module comment): a flight sampled
 /// with σ_t of the hero channel h, transmittance T, weighs f / p_h per channel.
 /// A collision at t: f = T σ_t (α apart), p_h = σ_t,h T_h.

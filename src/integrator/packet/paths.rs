@@ -16,14 +16,14 @@ use super::{
     MediumLanes, PacketScene, MAX_NULL_CROSSINGS,
 };
 use crate::geometry::{offset_magnitude, offset_point, to_world};
-use crate::integrator::roulette::continue_probability;
+use crate::integrator::roulette::roulette;
 use crate::integrator::sample::PathSample;
 use crate::integrator::volpath::PathSettings;
 use crate::medium::heterogeneous::HeterogeneousMedium;
 use crate::medium::phase::{direction_at, hg_eval, hg_log_derivative_g, hg_sample_angle};
 use crate::medium::{
-    collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight, sample_distance,
-    transmittance_rgb, Tracked, Transmitted,
+    collision_weight, collision_weight_d_sigma, expected_pass_weight, hero_channel, pass_weight,
+    sample_distance, transmittance_rgb, Tracked, Transmitted,
 };
 use crate::sampling::warp::cosine_hemisphere;
 use crate::sampling::{Pcg32, Sampler};
@@ -164,7 +164,7 @@ impl<const D: bool> PacketPaths<D> {
         let alive = mask_of(|k| k < n);
         let mut hero = [0usize; WIDTH];
         for (k, h) in hero.iter_mut().enumerate().take(n) {
-            *h = ((rngs[k].next_1d() * 3.0) as usize).min(2);
+            *h = hero_channel(rngs[k].next_1d());
         }
         PacketPaths {
             o,
@@ -283,19 +283,17 @@ impl<const D: bool> PacketPaths<D> {
         let played = self.alive & self.depth.cmp_gt(L::splat(ps.rr_depth as f32));
         if played.any() {
             let u = rngs.draw_1d(played);
-            let weight = if ctx.settings.estimand.roulette_by_target() {
-                self.beta.add(self.d_beta)
-            } else {
-                self.beta
-            };
+            let weight = ctx
+                .settings
+                .estimand
+                .roulette_weight(self.beta, self.d_beta);
             let d_beta = if D {
                 self.d_beta
             } else {
                 V3::splat(Vec3::ZERO)
             };
-            let q = continue_probability(weight, d_beta, self.eta);
-            // A NaN q fails u < q: the path ends, as the scalar one does.
-            let ended = played & !u.cmp_lt(q);
+            let (goes_on, q) = roulette(weight, d_beta, self.eta, u);
+            let ended = played & !goes_on;
             self.alive &= !ended;
             let go_on = played & self.alive;
             self.beta = self.beta.select(go_on, self.beta.div(q));

@@ -12,13 +12,13 @@ use super::{
 };
 use crate::bsdf::Bsdf;
 use crate::integrator::emitters::{sample_light_at_surface, skip_emitters};
-use crate::integrator::roulette::continue_probability;
+use crate::integrator::roulette::roulette;
 use crate::integrator::sample::PathSample;
 use crate::medium::heterogeneous::HeterogeneousMedium;
-use crate::medium::Tracked;
 use crate::medium::{
     collision_weight, collision_weight_d_sigma, expected_pass_weight, pass_weight, Medium,
 };
+use crate::medium::{hero_channel, Tracked};
 use crate::sampling::{mis_weight, Pcg32};
 use crate::scene::{Scene, SurfaceInteraction};
 
@@ -117,7 +117,7 @@ impl<'a> PathState<'a> {
             specular_chain: !s.hide_emitters,
             last: LastScatter { p: o, pdf: 1.0 },
             origin_clearance: None,
-            hero: ((rng.next_1d() * 3.0) as usize).min(2),
+            hero: hero_channel(rng.next_1d()),
             ray_o: o,
             ray_d: d,
             ray_tmax: tmax,
@@ -202,12 +202,10 @@ impl<'a> PathState<'a> {
             // (≥ β): by β, long paths, which weigh (α_t/α)^k more at the target, would
             // end early and their survivors' 1/q give D a heavy tail; by β_t, |dβ|/q stays
             // bounded, and q is the same at every source albedo.
-            let roulette_weight = match settings.estimand.roulette_by_target() {
-                true => self.beta + self.d_beta,
-                false => self.beta,
-            };
-            let q = continue_probability(roulette_weight.into(), self.d_beta.into(), self.eta);
-            if q.is_nan() || u_rr >= q {
+            let (beta, d_beta) = (self.beta.into(), self.d_beta.into());
+            let w = settings.estimand.roulette_weight(beta, d_beta);
+            let (goes_on, q) = roulette(w, d_beta, self.eta, u_rr);
+            if !goes_on {
                 return false;
             }
             self.beta /= q;
