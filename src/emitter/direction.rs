@@ -106,7 +106,8 @@ pub fn toward_sphere<F: Float>(
     let center = Vector3::splat(center);
     let c = sample_sphere_cone(center, radius, p_ref, u1, u2);
     // The light's outward normal where d meets it must face back along d (inward:
-    // along it).
+    // along it). Normalized before the test, as the one path always did, so that the
+    // sign of a near-tangent dot product rounds the same.
     let out = p_ref.add(c.d.scale(c.dist)).sub(center);
     let n = out.div(out.dot(out).sqrt());
     let facing = n.dot(c.d);

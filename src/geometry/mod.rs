@@ -47,7 +47,8 @@ impl Ray {
 /// ([`crate::scene::Scene::offset_scale`]), so a scene scaled by s (and σ_t by 1/s)
 /// renders the same image; for a unit-sized scene it is Mitsuba's offset.
 ///
-/// One definition for a path (`Vec3A`, as glam rounds it) and for lanes of paths.
+/// One definition for a path and for lanes of paths (the one path's `Vec3A` callers go
+/// through [`crate::scene::SurfaceInteraction::offset_p`]; it rounds as glam did).
 #[inline(always)]
 pub fn offset_point<F: Float>(
     p: Vector3<F>,

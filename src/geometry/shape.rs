@@ -280,8 +280,8 @@ impl Sphere {
         4.0 * std::f32::consts::PI * self.radius * self.radius
     }
 
-    /// The pdf [`sample_sphere_cone`] gives any direction toward the sphere from `p_ref`, or `None`
-    /// from inside.
+    /// The pdf [`sample_sphere_cone`] gives any direction toward the sphere from `p_ref`,
+    /// or `None` from inside.
     pub fn cone_pdf(&self, p_ref: Vec3A) -> Option<f32> {
         let cone = visible_cone(Vector3::from(self.center - p_ref), self.radius);
         (!cone.inside).then(|| cone_pdf(cone.cos_max))

@@ -15,7 +15,7 @@ use super::{
     dielectric_of, emitting, gather_media, medium_normals, surface_emission, surface_lanes,
     MediumLanes, PacketScene, MAX_NULL_CROSSINGS,
 };
-use crate::geometry::{offset_magnitude, offset_point, to_world};
+use crate::geometry::{offset_point, to_world};
 use crate::integrator::roulette::roulette;
 use crate::integrator::sample::PathSample;
 use crate::integrator::volpath::PathSettings;
@@ -630,11 +630,8 @@ impl<const D: bool> PacketPaths<D> {
             // boundary by the spawn offset (`geometry::offset_point`); in a medium whose
             // mean free path is that short the offset shows, so the packet takes it too.
             let n = medium_normals(ps, ends.entered, self.o, enters);
-            self.o = self.o.select(
-                enters,
-                self.o
-                    .sub(n.scale(offset_magnitude(self.o, ps.offset_scale))),
-            );
+            let spawned = offset_point(self.o, n, self.d, ps.offset_scale);
+            self.o = self.o.select(enters, spawned);
         }
         self.medium_shape = enters.blend(ends.entered, self.medium_shape);
         self.crossings = enters.blend(self.crossings + L::ONE, self.crossings);
